@@ -1,0 +1,388 @@
+"""Command line: ``dynmodel fit | validate | predict | inspect | plugins | schema | generate``.
+
+Tables go to stdout, progress to stderr, machine output to ``--json FILE``. A user's mistake
+gets one line on stderr and exit code 2 (1 when a check ran and failed, e.g. a diverging
+free run); ``--debug`` shows tracebacks.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable, Optional
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from . import __version__
+from .errors import EXIT_CHECK_FAILED, EXIT_INTERNAL, DynmodelError, FreeRunDiverged
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="Black-box models of driven dynamical systems from measured input/output data.")
+out = Console(soft_wrap=True)
+err = Console(stderr=True, soft_wrap=True, highlight=False)
+_state = {"debug": False}
+
+
+def _version(value: bool) -> None:
+    if value:
+        print(f"dynmodel {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(debug: bool = typer.Option(False, "--debug", help="show tracebacks for errors"),
+          version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="print the version and exit")) -> None:
+    _state["debug"] = debug
+
+
+def handled(fn: Callable) -> Callable:
+    """Turn DynmodelError into one stderr line and its exit code; other errors into exit 3."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except (typer.Exit, typer.Abort, KeyboardInterrupt):
+            raise
+        except DynmodelError as exc:
+            if _state["debug"]:
+                raise
+            err.print(f"error: {exc.line()}", markup=False)
+            raise typer.Exit(exc.exit_code) from None
+        except Exception as exc:  # a bug, not the user's fault
+            if _state["debug"]:
+                raise
+            err.print(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback "
+                      "and report it)", markup=False)
+            raise typer.Exit(EXIT_INTERNAL) from None
+
+    return wrapper
+
+
+def _fmt(v: Any, digits: int = 4) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.{digits}g}"
+    return str(v)
+
+
+def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
+    table = Table(title=title, title_justify="left")
+    table.add_column("split")
+    table.add_column("samples", justify="right")
+    table.add_column("NMSE %", justify="right")
+    table.add_column("MAX", justify="right")
+    has_one = any("nmse_1" in m for m in metrics.values())
+    if has_one:
+        table.add_column("NMSE one-step %", justify="right")
+    for split, m in metrics.items():
+        if m.get("unstable_from"):
+            u = m["unstable_from"]
+            cell = f"unstable from t = {u['time']:.6g} (sample {u['sample']})"
+            row = [split, str(m["samples"]), cell, "-"]
+        else:
+            row = [split, str(m["samples"]), _fmt(m.get("nmse")), _fmt(m.get("max"))]
+        if has_one:
+            row.append(_fmt(m.get("nmse_1")))
+        table.add_row(*row)
+    return table
+
+
+def _write_json(path: Path, payload: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(payload, indent=2) + "\n")
+
+
+def _warnings_to_stderr():
+    import warnings
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        err.print(f"warning: {message}", markup=False)
+
+    warnings.showwarning = show
+
+
+# ------------------------------------------------------------------------------ fit
+@app.command()
+@handled
+def fit(spec: Path = typer.Argument(..., help="YAML spec"),
+        out_path: Optional[Path] = typer.Option(None, "--out", help="model file (overrides the spec's output)"),
+        json_path: Optional[Path] = typer.Option(None, "--json", help="write metrics and model path as JSON"),
+        plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of measured vs free-running output"),
+        seed: Optional[int] = typer.Option(None, "--seed", help="override the spec's seed"),
+        quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output")) -> None:
+    """Fit the spec's model, evaluate free runs on every split, save it to HDF5."""
+    from . import engine, store
+    from .data import load_dataset
+    from .progress import Reporter
+    from .spec import load_spec
+
+    _warnings_to_stderr()
+    t0 = time.perf_counter()
+    s = load_spec(spec)
+    if seed is not None:
+        s.seed = seed
+    with Reporter(enabled=not quiet) as progress:
+        progress("data", None, "loading")
+        ds = load_dataset(s)
+        model, runs = engine.fit_dataset(s, ds, progress)
+        target = out_path if out_path is not None else s.output_path()
+        model.spec["output"] = str(Path(target).resolve())
+        store.save(model, target)
+    elapsed = time.perf_counter() - t0
+    recs = ", ".join(dict.fromkeys(r.name.split(":")[-1] for r in ds.recordings))
+    out.print(f"[bold]{s.name}[/]: {s.model.family} fitted with cost {s.cost} on {recs} in {elapsed:.1f} s")
+    out.print(metrics_table(model.metrics))
+    out.print(f"model written to {Path(target).resolve()}")
+    if json_path:
+        _write_json(json_path, {"metrics": model.metrics, "model": str(Path(target).resolve())})
+    if plot:
+        _plot_fit(plot, ds, runs, model, s.name)
+        out.print(f"plot written to {plot}")
+    bad = model.unstable
+    if bad:
+        raise FreeRunDiverged(
+            f"the free run diverged on the {bad['split']} split at sample {bad['sample']} "
+            f"(t = {bad['time']:.6g}) of recording '{bad['recording']}'",
+            str(spec), "use cost: mse_inf, the internal mode or a smaller spectral scale; the model was saved "
+                       "for inspection", sample=bad["sample"])
+
+
+def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
+    from .plots import measured_vs_simulated
+
+    # the recording holding the test split (else the first), whole, with the splits shaded
+    rec = next((r for r, _, _ in ds.ranges.get("test", [])), 0)
+    r = ds.recordings[rec]
+    t = np.arange(r.n) * ds.sampling_time
+    spans = [(split, a * ds.sampling_time, b * ds.sampling_time)
+             for split in ds.splits() for rr, a, b in ds.ranges[split] if rr == rec]
+    measured_vs_simulated(path, t, r.y, runs[rec].y, model.output_names, f"{name}: {r.name}", spans)
+
+
+# ------------------------------------------------------------------------------ validate
+@app.command()
+@handled
+def validate(spec: Path = typer.Argument(..., help="YAML spec"),
+             resolved: bool = typer.Option(False, "--resolved", help="print the full resolved spec as YAML")) -> None:
+    """Check a spec and its data without fitting: keys, files, columns, NaN, split sizes."""
+    import yaml
+
+    from .data import describe, load_dataset
+    from .spec import load_spec
+
+    _warnings_to_stderr()
+    s = load_spec(spec)
+    ds = load_dataset(s)
+    out.print(f"[green]ok[/]: {spec} ({s.model.family}, cost {s.cost}, {len(ds.recordings)} recording(s), "
+              f"inputs {ds.input_names}, outputs {ds.output_names}, sampling time {ds.sampling_time:g})")
+    table = Table()
+    for col in ("split", "samples", "scored", "segments"):
+        table.add_column(col)
+    for row in describe(ds):
+        table.add_row(row["split"], str(row["samples"]), str(row["scored"]), ", ".join(row["segments"]))
+    out.print(table)
+    if resolved:
+        print(yaml.safe_dump(s.resolved(), sort_keys=False))
+
+
+# ------------------------------------------------------------------------------ predict
+def _read_table(path: Path, names: list[str]) -> dict[str, np.ndarray]:
+    from .data.readers import read_columns
+
+    return read_columns(path, names)
+
+
+@app.command()
+@handled
+def predict(model_path: Path = typer.Argument(..., metavar="MODEL", help="model file written by dynmodel fit"),
+            input_path: Path = typer.Option(..., "--input", help="file with the model's input columns"),
+            out_path: Optional[Path] = typer.Option(None, "--out", help="CSV for the predictions (default: stdout)"),
+            tune_in: Optional[Path] = typer.Option(None, "--tune-in", help="file with measured output columns for the tune-in"),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of the prediction (and the measured output when present)")) -> None:
+    """Replay a saved model (free run) on a new input series."""
+    from . import store
+    from .data.readers import read_columns
+    from .errors import DataError
+
+    model = store.load(model_path)
+    cols = read_columns(input_path, model.input_names)
+    u = np.column_stack([cols[n] for n in model.input_names])
+    if not np.isfinite(u).all():
+        row = int(np.flatnonzero(~np.isfinite(u).all(axis=1))[0])
+        raise DataError(f"the input has NaN or inf at sample {row}", str(input_path), "fill or remove those samples")
+    y_meas = None
+    need = model.warmup
+    if need:
+        source = tune_in or input_path
+        try:
+            yc = read_columns(source, model.output_names)
+        except DataError:
+            outs = ", ".join(f"'{n}'" for n in model.output_names)
+            raise DataError(
+                f"this external-mode model tunes in on the first {need} measured samples of output column(s) {outs}, "
+                f"and {source.name} has none", str(source),
+                f"add column(s) {outs} to {input_path.name} (only the first {need} rows are read) or pass "
+                "--tune-in FILE") from None
+        y_meas = np.column_stack([yc[n] for n in model.output_names])
+        if len(y_meas) < need or not np.isfinite(y_meas[:need]).all():
+            raise DataError(f"the tune-in needs {need} finite measured output samples, found "
+                            f"{int(np.isfinite(y_meas[:need]).all(axis=1).sum())}", str(source),
+                            f"provide the first {need} measured values of {model.output_names}")
+    try:
+        run = model.run(u, y_meas)
+    except ValueError as exc:
+        raise DataError(str(exc), str(input_path), "check the input file") from exc
+    t = np.arange(len(u)) * model.sampling_time
+    table = np.column_stack([t, run.y])
+    header = ",".join(["t"] + list(model.output_names))
+    if out_path is None:
+        np.savetxt(sys.stdout, table, delimiter=",", header=header, comments="", fmt="%.10g")
+    else:
+        out_path.parent.mkdir(parents=True, exist_ok=True)
+        np.savetxt(out_path, table, delimiter=",", header=header, comments="", fmt="%.10g")
+        err.print(f"{len(u)} predictions written to {out_path}", markup=False)
+    if plot:
+        from .plots import measured_vs_simulated
+
+        try:
+            yc = read_columns(input_path, model.output_names)
+            y_true = np.column_stack([yc[n] for n in model.output_names])
+        except DataError:
+            y_true = np.full_like(run.y, np.nan)
+        measured_vs_simulated(plot, t, y_true, run.y, model.output_names, f"{model_path.name} on {input_path.name}")
+    if run.diverged_at is not None:
+        raise FreeRunDiverged(f"the free run diverged at sample {run.diverged_at} (t = {run.diverged_at * model.sampling_time:.6g}); "
+                              "later predictions are NaN", str(input_path),
+                              "check that the input stays within the training range")
+
+
+# ------------------------------------------------------------------------------ inspect
+@app.command()
+@handled
+def inspect(model_path: Path = typer.Argument(..., metavar="MODEL"),
+            json_path: Optional[Path] = typer.Option(None, "--json", help="write the summary as JSON"),
+            spec: bool = typer.Option(False, "--spec", help="also print the resolved spec")) -> None:
+    """Summarize a saved model: family, data, preprocessing, metrics, provenance."""
+    import yaml
+
+    from . import store
+
+    model = store.load(model_path)
+    pre = model.preprocessor
+    summary = {
+        "file": str(model_path),
+        "name": model.spec.get("name"),
+        "family": model.family.name,
+        "cost": model.spec.get("cost"),
+        "inputs": pre.input_names,
+        "outputs": pre.output_names,
+        "delay_lines": pre.delay_lines,
+        "scaling": pre.scaling,
+        "sampling_time": pre.sampling_time,
+        "tune_in_samples": model.warmup,
+        "model": model.family.summary(),
+        "metrics": model.metrics,
+        "provenance": model.provenance,
+    }
+    out.print(f"[bold]{model_path}[/]  family [bold]{model.family.name}[/]  ({model.spec.get('name')})")
+    facts = Table(show_header=False, box=None)
+    facts.add_column(style="dim")
+    facts.add_column()
+    for key in ("cost", "inputs", "outputs", "delay_lines", "scaling", "sampling_time", "tune_in_samples"):
+        facts.add_row(key, str(summary[key]))
+    for key, value in summary["model"].items():
+        facts.add_row(key, str(value))
+    prov = model.provenance
+    for key in ("dynmodel_version", "created", "seed", "training_data_sha256", "spec_file"):
+        if key in prov:
+            facts.add_row(key, str(prov[key]))
+    out.print(facts)
+    out.print(metrics_table(model.metrics, "free-run metrics"))
+    if spec:
+        print(yaml.safe_dump(model.spec, sort_keys=False))
+    if json_path:
+        _write_json(json_path, summary)
+
+
+# ------------------------------------------------------------------------------ plugins / schema
+@app.command()
+@handled
+def plugins() -> None:
+    """List the installed model families and data generators."""
+    from importlib.metadata import entry_points
+
+    from . import registry
+
+    for group, loaded, title in [(registry.FAMILIES, registry.families(), "model families"),
+                                 (registry.SOURCES, registry.sources(), "data generators")]:
+        eps = {ep.name: ep.value for ep in entry_points(group=group)}
+        table = Table(title=f"{title} ({group})", title_justify="left")
+        table.add_column("name")
+        table.add_column("description")
+        table.add_column("provided by", style="dim")
+        for name, obj in loaded.items():
+            table.add_row(name, getattr(obj, "description", ""), eps.get(name, ""))
+        out.print(table)
+
+
+@app.command()
+@handled
+def schema(out_path: Optional[Path] = typer.Option(None, "--out", help="write to a file instead of stdout")) -> None:
+    """Print the JSON Schema of the spec (every installed family's and generator's parameters)."""
+    from .spec import spec_json_schema
+
+    text = json.dumps(spec_json_schema(), indent=2)
+    if out_path:
+        out_path.write_text(text + "\n")
+    else:
+        print(text)
+
+
+@app.command()
+@handled
+def generate(generator: str = typer.Argument(..., help="generator name (see `dynmodel plugins`)"),
+             n: int = typer.Option(10000, "--n", min=1, help="number of samples"),
+             seed: int = typer.Option(0, "--seed", help="seed of the realization"),
+             out_path: Path = typer.Option(..., "--out", help="CSV file to write"),
+             param: list[str] = typer.Option([], "--param", "-p", help="generator parameter as key=value (repeatable)")) -> None:
+    """Write a generated input/output recording as CSV (for trying file-based specs)."""
+    import yaml
+
+    from . import registry
+    from .errors import SpecError
+
+    gen = registry.source(generator)
+    values: dict[str, Any] = {}
+    for item in param:
+        if "=" not in item:
+            raise SpecError(f"'{item}' is not key=value", "--param", "write e.g. --param a0=0.7")
+        key, raw = item.split("=", 1)
+        values[key.strip()] = yaml.safe_load(raw)
+    try:
+        params = gen.Params.model_validate(values)
+    except Exception as exc:
+        raise SpecError(f"invalid parameter: {str(exc).splitlines()[-1].strip()}", "--param",
+                        f"see the '{generator}' entry of `dynmodel schema`") from None
+    u, y = gen.generate(params, n, np.random.default_rng(seed))
+    t = np.arange(n) * gen.sampling_time(params)
+    header = ",".join(["t", *gen.input_names, *gen.output_names])
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(out_path, np.column_stack([t, u, y]), delimiter=",", header=header, comments="", fmt="%.12g")
+    err.print(f"{n} samples of {generator} (seed {seed}) written to {out_path}", markup=False)
+
+
+def main() -> None:
+    """Console entry point."""
+    app()
+
+
+if __name__ == "__main__":
+    main()

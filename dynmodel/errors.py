@@ -1,0 +1,55 @@
+"""User-facing errors: one line that says what is wrong, where, and how to fix it.
+
+Exit codes follow the project conventions: 0 success, 1 a check ran and failed
+(for example a diverging free run), 2 usage, spec or data error.
+"""
+from __future__ import annotations
+
+EXIT_OK = 0
+EXIT_CHECK_FAILED = 1
+EXIT_USAGE = 2
+EXIT_INTERNAL = 3
+
+
+class DynmodelError(Exception):
+    """An error caused by the user's input (spec, data, model file, options).
+
+    ``str(err)`` is a single line: ``"<where>: <what>. Fix: <fix>"``.
+    """
+
+    exit_code = EXIT_USAGE
+
+    def __init__(self, what: str, where: str | None = None, fix: str | None = None):
+        self.what = what.rstrip(". ")
+        self.where = where
+        self.fix = fix
+        super().__init__(self.line())
+
+    def line(self) -> str:
+        text = f"{self.where}: {self.what}" if self.where else self.what
+        if self.fix:
+            text += f". Fix: {self.fix.rstrip('.')}"
+        return " ".join(text.split())
+
+
+class SpecError(DynmodelError):
+    """Malformed YAML, unknown key, wrong type or value in a spec."""
+
+
+class DataError(DynmodelError):
+    """Missing file or column, NaN/inf values, too little data for the split."""
+
+
+class ModelFileError(DynmodelError):
+    """Unreadable, corrupt, incomplete or newer-format model file."""
+
+
+class FreeRunDiverged(DynmodelError):
+    """A free-running simulation left every plausible range of the output."""
+
+    exit_code = EXIT_CHECK_FAILED
+
+    def __init__(self, what: str, where: str | None = None, fix: str | None = None,
+                 sample: int | None = None):
+        self.sample = sample
+        super().__init__(what, where, fix)

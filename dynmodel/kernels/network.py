@@ -1,0 +1,126 @@
+"""Recurrences of sigmoid networks with one-dimensional elements (thesis eq. 5.13 / 5.18 / 6.21).
+
+    x_t = a * x_{t-1} + g * tanh(C x_{t-1} + c0 + B v_t)
+
+``a`` holds the relaxation parameters, ``g`` the factor in front of tanh (1, or 1 - |a| as in
+eq. 6.21). ``C`` is sparse (CSR arrays ``indptr, indices, data``), ``B`` dense. ``v_t`` is the
+drive: the external input, plus the fed-back output in the external mode (eq. 5.42 / 5.43).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .tanh import FASTMATH, tanh1
+
+
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
+def _pre(indptr, indices, data, B, c0, x, v, z):
+    """z = C x + c0 + B v (CSR gather for C)."""
+    m = c0.shape[0]
+    nv = v.shape[0]
+    for i in range(m):
+        acc = c0[i]
+        for j in range(nv):
+            acc += B[i, j] * v[j]
+        for k in range(indptr[i], indptr[i + 1]):
+            acc += data[k] * x[indices[k]]
+        z[i] = acc
+
+
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
+def _post(a, g, x, z, out):
+    """out = a * x + g * tanh(z) (vectorised)."""
+    for i in range(z.shape[0]):
+        out[i] = a[i] * x[i] + g[i] * tanh1(z[i])
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def drive(indptr, indices, data, B, c0, a, g, V, x0):
+    """States (n, M) of the network driven by V (n, n_drive) from state x0 (internal mode,
+    or teacher forcing when V holds the measured past outputs)."""
+    n = V.shape[0]
+    m = c0.shape[0]
+    X = np.empty((n, m))
+    z = np.empty(m)
+    prev = x0.copy()
+    for t in range(n):
+        _pre(indptr, indices, data, B, c0, prev, V[t], z)
+        _post(a, g, prev, z, X[t])
+        prev = X[t]
+    return X
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0,
+             store_states):
+    """External-mode run: the network is fed its own past output.
+
+    Drive ``v_t = [u_t, f_t]`` with feedback ``f_t``:
+      * ``t <= tune_in`` (tune-in): measured ``y_{t-1}`` (``y_0`` at t = 0);
+      * afterwards ``mix * y_{t-1} + (1 - mix) * yhat_{t-1}`` (``mix`` = 0: pure free run;
+        0 < mix < 1: the error-propagation schedule of thesis 6.3.2, needs all of ``Y``).
+    Output ``yhat_t = W x_t + D v_t + w0``. A run whose output leaves [lo, hi] (or is not
+    finite) after the tune-in stops; the remaining outputs are NaN and the sample index is
+    returned (else -1). Outputs during the tune-in are not fed back and are not checked.
+
+    Returns (states or empty array, yhat (n, n_out), feedback used (n, n_out), diverged_at).
+    """
+    n = U.shape[0]
+    m = c0.shape[0]
+    n_in = U.shape[1]
+    n_out = W.shape[0]
+    has_y = Y.shape[0] > 0
+    X = np.empty((n if store_states else 0, m))
+    yhat = np.full((n, n_out), np.nan)
+    fb = np.full((n, n_out), np.nan)
+    v = np.empty(n_in + n_out)
+    z = np.empty(m)
+    prev = x0.copy()
+    cur = np.empty(m)
+    diverged = -1
+    for t in range(n):
+        for j in range(n_in):
+            v[j] = U[t, j]
+        for k in range(n_out):
+            if tune_in > 0 and t <= tune_in:
+                f = Y[t - 1, k] if t > 0 else Y[0, k]
+            else:
+                f = yhat[t - 1, k] if t > 0 else y_rest[k]
+                if mix > 0.0 and has_y:
+                    f = mix * (Y[t - 1, k] if t > 0 else Y[0, k]) + (1.0 - mix) * f
+            v[n_in + k] = f
+            fb[t, k] = f
+        _pre(indptr, indices, data, B, c0, prev, v, z)
+        _post(a, g, prev, z, cur)
+        if store_states:
+            X[t] = cur
+        bad = False
+        for k in range(n_out):
+            acc = w0[k]
+            for i in range(m):
+                acc += W[k, i] * cur[i]
+            for j in range(n_in + n_out):
+                acc += D[k, j] * v[j]
+            yhat[t, k] = acc
+            if t >= tune_in and not (lo[k] <= acc <= hi[k]):
+                bad = True
+        if bad:
+            diverged = t
+            for k in range(n_out):
+                yhat[t, k] = np.nan
+            break
+        tmp = prev
+        prev = cur
+        cur = tmp
+    return X, yhat, fb, diverged
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def step_batch(indptr, indices, data, B, c0, a, g, X, V, out):
+    """One step for many replicas at once: out[r] = update(X[r], V[r])."""
+    m = c0.shape[0]
+    z = np.empty(m)
+    for r in range(X.shape[0]):
+        _pre(indptr, indices, data, B, c0, X[r], V[r], z)
+        _post(a, g, X[r], z, out[r])

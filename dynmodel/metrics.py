@@ -1,0 +1,31 @@
+"""Quality measures of free-running predictions (thesis 6.2.2).
+
+NMSE = 100 % * mean((y - yhat)^2) / var(y)        (eq. 5.48 / 6.17)
+MAX  = max |y - yhat| / std(y)                     (eq. 6.18)
+
+Both are computed per output channel over the scored samples of a split, pooled over
+recordings; ``var(y)`` and ``std(y)`` are those of the measured output on the same samples.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def nmse(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
+    """Normalised mean squared error in percent, per output column."""
+    y, yhat = np.atleast_2d(y.T).T, np.atleast_2d(yhat.T).T
+    return 100.0 * np.mean((y - yhat) ** 2, axis=0) / np.maximum(np.var(y, axis=0), np.finfo(float).tiny)
+
+
+def max_error(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
+    """Largest absolute error in units of the output's standard deviation, per output column."""
+    y, yhat = np.atleast_2d(y.T).T, np.atleast_2d(yhat.T).T
+    return np.max(np.abs(y - yhat), axis=0) / np.maximum(np.std(y, axis=0), np.finfo(float).tiny)
+
+
+def rmse(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
+    y, yhat = np.atleast_2d(y.T).T, np.atleast_2d(yhat.T).T
+    return np.sqrt(np.mean((y - yhat) ** 2, axis=0))
+
+
+METRICS = {"nmse": nmse, "max": max_error}

@@ -1,0 +1,130 @@
+"""A fitted model in physical units: family + preprocessing + metadata, and its evaluation."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from .data.dataset import Dataset
+from .data.preprocess import Preprocessor
+from .family import Family
+from .metrics import METRICS, nmse
+
+
+@dataclass
+class Run:
+    """A free run of one recording in physical units."""
+
+    y: np.ndarray
+    diverged_at: int | None
+
+
+@dataclass
+class FittedModel:
+    family: Family
+    preprocessor: Preprocessor
+    bounds: tuple[np.ndarray, np.ndarray]  # model-space divergence band
+    spec: dict[str, Any]
+    metrics: dict[str, Any] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict)
+    train_input: np.ndarray | None = None  # raw training inputs (for reliability checks)
+    train_input_lengths: np.ndarray | None = None
+
+    @property
+    def input_names(self) -> list[str]:
+        return self.preprocessor.input_names
+
+    @property
+    def output_names(self) -> list[str]:
+        return self.preprocessor.output_names
+
+    @property
+    def sampling_time(self) -> float:
+        return self.preprocessor.sampling_time
+
+    @property
+    def warmup(self) -> int:
+        """Measured output samples the model needs at the start of a run (tune-in)."""
+        return self.family.warmup
+
+    def _inputs(self, u: np.ndarray | Mapping[str, np.ndarray]) -> np.ndarray:
+        if isinstance(u, Mapping):
+            missing = [n for n in self.input_names if n not in u]
+            if missing:
+                raise ValueError(f"input '{missing[0]}' is missing; the model needs {self.input_names}")
+            u = np.column_stack([np.asarray(u[n], dtype=np.float64) for n in self.input_names])
+        u = np.asarray(u, dtype=np.float64)
+        if u.ndim == 1:
+            u = u[:, None]
+        if u.ndim != 2 or u.shape[1] != len(self.input_names):
+            raise ValueError(f"expected {len(self.input_names)} input column(s) {self.input_names}, got {u.shape[1]}")
+        if not np.isfinite(u).all():
+            raise ValueError(f"the input has NaN or inf at sample {int(np.flatnonzero(~np.isfinite(u).all(axis=1))[0])}")
+        return u
+
+    def run(self, u, y_measured: np.ndarray | None = None) -> Run:
+        """Free run from the rest state over the whole input; NaN after a divergence."""
+        um = self.preprocessor.inputs(self._inputs(u))
+        ym = None if y_measured is None else self.preprocessor.outputs(y_measured)
+        sim = self.family.simulate(um, ym, self.bounds)
+        return Run(self.preprocessor.physical_outputs(sim.y), sim.diverged_at)
+
+    def predict(self, u, y_tune: np.ndarray | None = None) -> np.ndarray:
+        """Free-running prediction (n, n_outputs) in physical units.
+
+        ``y_tune``: measured outputs, at least the first :attr:`warmup` samples (external mode).
+        """
+        return self.run(u, y_tune).y
+
+    def predict_one_step(self, u, y_measured: np.ndarray) -> np.ndarray | None:
+        um = self.preprocessor.inputs(self._inputs(u))
+        pred = self.family.predict_one_step(um, self.preprocessor.outputs(y_measured))
+        return None if pred is None else self.preprocessor.physical_outputs(pred)
+
+    @property
+    def unstable(self) -> dict[str, Any] | None:
+        """The first split whose free run diverged, with where it happened, else None."""
+        for split, m in self.metrics.items():
+            if m.get("unstable_from"):
+                return {"split": split, **m["unstable_from"]}
+        return None
+
+
+def evaluate(model: FittedModel, ds: Dataset, metrics: list[str] = ("nmse", "max"),
+             one_step: bool = True) -> tuple[dict[str, Any], list[Run]]:
+    """Free-run every recording from its first sample to its end and score each split."""
+    warm = model.warmup
+    runs = [model.run(r.u, r.y[:warm] if warm else None) for r in ds.recordings]
+    one = None
+    if one_step:
+        preds = [model.predict_one_step(r.u, r.y) for r in ds.recordings]
+        one = preds if all(p is not None for p in preds) else None
+    out: dict[str, Any] = {}
+    st = ds.sampling_time
+    for split in ds.splits():
+        rows = ds.scored(split, warmup=warm)
+        entry: dict[str, Any] = {"samples": int(sum(b - a for _, a, b in rows))}
+        unstable = None
+        for rec, a, b in rows:
+            k = runs[rec].diverged_at
+            if k is not None and k < b:
+                unstable = {"recording": ds.recordings[rec].name, "sample": int(k), "time": float(k * st)}
+                break
+        y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
+        if unstable:
+            entry.update({m: None for m in metrics})
+            entry["unstable_from"] = unstable
+        else:
+            yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])
+            values = {m: METRICS[m](y, yhat) for m in metrics}
+            for m, v in values.items():
+                entry[m] = float(np.max(v)) if m == "max" else float(np.mean(v))
+            if len(model.output_names) > 1:
+                entry["per_output"] = {name: {m: float(values[m][i]) for m in metrics}
+                                       for i, name in enumerate(model.output_names)}
+        if one is not None:
+            y1 = np.concatenate([one[r][a:b] for r, a, b in rows])
+            entry["nmse_1"] = float(np.mean(nmse(y, y1)))
+        out[split] = entry
+    return out, runs

@@ -1,0 +1,77 @@
+"""Plugin discovery through ``importlib.metadata`` entry points.
+
+Built-in families and data generators register themselves exactly as a third-party
+package would, in ``pyproject.toml``::
+
+    [project.entry-points."dynmodel.families"]
+    esn = "dynmodel_plugins.esn:EchoStateNetwork"
+
+The core never imports a plugin by name; it only asks this module.
+"""
+from __future__ import annotations
+
+import difflib
+from functools import lru_cache
+from importlib.metadata import entry_points
+from typing import Any
+
+from .errors import DynmodelError
+
+FAMILIES = "dynmodel.families"
+SOURCES = "dynmodel.sources"
+
+_KIND = {FAMILIES: "model family", SOURCES: "data generator"}
+
+
+@lru_cache(maxsize=None)
+def _load_group(group: str) -> dict[str, Any]:
+    loaded: dict[str, Any] = {}
+    for ep in sorted(entry_points(group=group), key=lambda e: e.name):
+        if ep.name in loaded:
+            continue
+        try:
+            obj = ep.load()
+        except Exception as exc:  # a broken third-party plugin must not break the tool
+            raise DynmodelError(
+                f"the {_KIND[group]} plugin '{ep.name}' ({ep.value}) failed to import: {exc}",
+                fix="reinstall or uninstall the package that provides it") from exc
+        if getattr(obj, "name", ep.name) != ep.name:
+            obj.name = ep.name
+        loaded[ep.name] = obj
+    return loaded
+
+
+def families() -> dict[str, Any]:
+    """Installed model families, by id."""
+    return dict(_load_group(FAMILIES))
+
+
+def sources() -> dict[str, Any]:
+    """Installed data generators, by id."""
+    return dict(_load_group(SOURCES))
+
+
+def unknown_name_message(kind: str, name: str, known: list[str]) -> tuple[str, str]:
+    """(what, fix) texts for an unknown plugin name, with a close match when there is one."""
+    what = f"unknown {kind} '{name}'"
+    close = difflib.get_close_matches(name, known, n=1)
+    fix = f"use one of: {', '.join(known) or '(none installed)'}"
+    if close:
+        fix = f"did you mean '{close[0]}'? Known: {', '.join(known)}"
+    return what, fix
+
+
+def family(name: str) -> Any:
+    table = families()
+    if name not in table:
+        what, fix = unknown_name_message("family", name, sorted(table))
+        raise DynmodelError(what, "model.family", fix)
+    return table[name]
+
+
+def source(name: str) -> Any:
+    table = sources()
+    if name not in table:
+        what, fix = unknown_name_message("generator", name, sorted(table))
+        raise DynmodelError(what, "data.generator", fix)
+    return table[name]

@@ -1,0 +1,246 @@
+"""Linear-in-the-parameters estimation shared by the families.
+
+* :func:`lstsq` - least squares through a QR reduction and the SVD of R (thesis A.2.1: the
+  pseudo-inverse computed by SVD, with a relative singular-value cutoff).
+* :func:`ridge` - ridge regression, with the factor chosen on a validation set when asked.
+* :func:`fos` - Fast Orthogonal Search (thesis A.2.2, Korenberg's covariance recursion on the
+  Gram matrix; no explicit Gram-Schmidt on the full vectors), stopped at a maximum number of
+  terms, an error-reduction threshold, or the rise of the validation error (thesis A.3).
+
+All functions take a feature matrix F (N, K) and targets Y (N, q) and return a
+:class:`LinearFit` whose prediction is ``F @ coef + intercept``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+_CHUNK_ELEMENTS = 20_000_000  # TSQR chunk size (160 MB of float64)
+
+
+@dataclass
+class LinearFit:
+    coef: np.ndarray  # (K, q)
+    intercept: np.ndarray  # (q,)
+    selected: list[np.ndarray] | None = None  # FOS: chosen feature indices per output
+    info: dict = field(default_factory=dict)
+
+    def predict(self, F: np.ndarray) -> np.ndarray:
+        return F @ self.coef + self.intercept
+
+
+def _as2d(Y: np.ndarray) -> np.ndarray:
+    Y = np.asarray(Y, dtype=np.float64)
+    return Y[:, None] if Y.ndim == 1 else Y
+
+
+def qr_reduce(A: np.ndarray, Y: np.ndarray, ones: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """R (K, K) and Q^T Y (K, q) of A = Q R, by chunked TSQR (memory: one chunk).
+
+    ``ones=True`` appends a column of ones to A (the intercept) chunk by chunk, without a copy
+    of A."""
+    K = A.shape[1] + int(ones)
+    q = Y.shape[1]
+    rows = max(2 * K, _CHUNK_ELEMENTS // (K + q))
+    acc = np.zeros((0, K + q))
+    for start in range(0, A.shape[0], rows):
+        a = A[start:start + rows]
+        block = np.empty((acc.shape[0] + a.shape[0], K + q))
+        block[:acc.shape[0]] = acc
+        block[acc.shape[0]:, :A.shape[1]] = a
+        if ones:
+            block[acc.shape[0]:, A.shape[1]] = 1.0
+        block[acc.shape[0]:, K:] = Y[start:start + rows]
+        acc = np.linalg.qr(block, mode="r")
+    if acc.shape[0] < K:  # fewer rows than columns
+        acc = np.vstack([acc, np.zeros((K - acc.shape[0], acc.shape[1]))])
+    return acc[:K, :K], acc[:K, K:]
+
+
+def lstsq(F: np.ndarray, Y: np.ndarray, rcond: float | None = None, fit_intercept: bool = True) -> LinearFit:
+    """Minimum-norm least squares; singular values below ``rcond * s_max`` are dropped
+    (default ``rcond``: machine epsilon times max(N, K), as numpy and MATLAB's pinv)."""
+    Y = _as2d(Y)
+    R, QtY = qr_reduce(np.asarray(F, dtype=np.float64), Y, ones=fit_intercept)
+    U, s, Vt = np.linalg.svd(R)
+    if rcond is None:
+        rcond = np.finfo(np.float64).eps * max(F.shape[0], R.shape[0])
+    keep = s > rcond * (s[0] if s.size else 0.0)
+    W = Vt[keep].T @ ((U[:, keep].T @ QtY) / s[keep, None])
+    if fit_intercept:
+        return LinearFit(W[:-1], W[-1], info={"rank": int(keep.sum())})
+    return LinearFit(W, np.zeros(Y.shape[1]), info={"rank": int(keep.sum())})
+
+
+def ridge(F: np.ndarray, Y: np.ndarray, alpha: float | str = "auto", Fv: np.ndarray | None = None,
+          Yv: np.ndarray | None = None, alphas: np.ndarray | None = None) -> LinearFit:
+    """Minimise ||Y - F w - b||^2 + alpha ||w||^2 (intercept not penalised).
+
+    ``alpha='auto'``: the factor with the lowest validation error on (Fv, Yv) from a
+    log-spaced grid relative to the largest squared singular value of the centred F.
+    """
+    Y = _as2d(Y)
+    fm, ym = F.mean(axis=0), Y.mean(axis=0)
+    R, QtY = qr_reduce(F - fm, Y - ym)
+    U, s, Vt = np.linalg.svd(R)
+    UtY = U.T @ QtY
+
+    def solve(a: float) -> LinearFit:
+        W = Vt.T @ (UtY * (s / (s**2 + a))[:, None])
+        return LinearFit(W, ym - fm @ W, info={"alpha": float(a)})
+
+    if alpha != "auto":
+        return solve(float(alpha))
+    if Fv is None or Yv is None:
+        raise ValueError("ridge with alpha='auto' needs a validation set")
+    Yv = _as2d(Yv)
+    grid = alphas if alphas is not None else (s[0] ** 2 if s.size else 1.0) * np.logspace(-14, 0, 29)
+    best, best_err = None, np.inf
+    for a in grid:
+        fit = solve(a)
+        err = float(np.mean((Yv - fit.predict(Fv)) ** 2))
+        if err < best_err:
+            best, best_err = fit, err
+    assert best is not None
+    best.info["validation_mse"] = best_err
+    return best
+
+
+# ---------------------------------------------------------------- Fast Orthogonal Search
+
+@dataclass
+class FosPath:
+    """The FOS selection sequence for one target."""
+
+    order: np.ndarray  # selected pool indices, in order
+    coef_path: list[np.ndarray]  # coefficients (A.14 / A.15) after each selection
+    error_reduction: np.ndarray  # Q(m): reduction of the sum of squared errors by term m
+    validation_error: np.ndarray | None  # mean squared validation error after each term
+    best: int  # number of terms kept
+
+
+def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ...] = (),
+               max_terms: int | None = None, threshold: float | None = None,
+               Pv: np.ndarray | None = None, yv: np.ndarray | None = None, patience: int = 1,
+               tol: float = 1e-10) -> FosPath:
+    """Korenberg's FOS on the Gram matrix G = P^T P of the pool P, c = P^T y, yy = y^T y.
+
+    The recursion keeps, for every remaining candidate i, D~(m, j, i) (its inner products with
+    the orthogonalised selected terms), D~(m, m, i) (its squared norm after orthogonalisation)
+    and C~(m, i) (its correlation with y after orthogonalisation); the candidate with the
+    largest error reduction Q~ = C~^2 / D~ is selected (appendix A.2.2). ``forced`` indices
+    are selected first (e.g. the constant term).
+
+    Stopping: ``max_terms``; ``threshold`` on Q / yy (the error-reduction ratio); or, with a
+    validation pool ``Pv`` and targets ``yv``, after ``patience`` terms without a new lowest
+    validation error (``patience=1``: stop at the first rise). The kept size is the best one.
+    """
+    P = G.shape[0]
+    limit = P if max_terms is None else min(max_terms, P)
+    diag = np.diag(G).copy()
+    Dmm = diag.copy()
+    Ct = np.asarray(c, dtype=np.float64).copy()
+    Dt = np.zeros((limit, P))
+    alpha = np.zeros((limit, limit))
+    D = np.zeros(limit)
+    Cc = np.zeros(limit)
+    Q = np.zeros(limit)
+    available = diag > 0
+    order: list[int] = []
+    coef_path: list[np.ndarray] = []
+    val_err: list[float] = []
+    best_m, best_val, since_best = 0, np.inf, 0
+    for m in range(limit):
+        if m > 0:
+            prev = order[-1]
+            row = G[:, prev] - alpha[m - 1, :m - 1] @ Dt[:m - 1]
+            Dt[m - 1] = row
+            Dmm = Dmm - row * row / D[m - 1]
+            Ct = Ct - row * (Cc[m - 1] / D[m - 1])
+            available[prev] = False
+        valid = available & (Dmm > tol * np.maximum(diag, 1e-300))
+        if not valid.any():
+            break
+        if m < len(forced):
+            i = forced[m]
+            if not valid[i]:
+                break
+        else:
+            score = np.where(valid, Ct * Ct / np.where(valid, Dmm, 1.0), -np.inf)
+            i = int(np.argmax(score))
+            if threshold is not None and score[i] < threshold * yy:
+                break
+        alpha[m, :m] = Dt[:m, i] / D[:m]
+        D[m], Cc[m] = Dmm[i], Ct[i]
+        Q[m] = Cc[m] ** 2 / D[m]
+        order.append(i)
+        # weights of the selected terms: solve A^T a = beta with A[k, j] = alpha(k, j) (A.14/A.15)
+        beta = Cc[:m + 1] / D[:m + 1]
+        A = np.eye(m + 1) + np.tril(alpha[:m + 1, :m + 1], -1)
+        coef = _solve_unit_upper(A.T, beta)
+        coef_path.append(coef)
+        if Pv is not None and yv is not None:
+            err = float(np.mean((yv - Pv[:, order] @ coef) ** 2))
+            val_err.append(err)
+            if err < best_val * (1 - 1e-12) or m < len(forced):
+                best_val, best_m, since_best = err, m + 1, 0
+            else:
+                since_best += 1
+                if since_best >= patience:
+                    break
+        else:
+            best_m = m + 1
+    return FosPath(np.array(order, dtype=np.int64), coef_path, Q[:len(order)],
+                   np.array(val_err) if val_err else None, best_m)
+
+
+def _solve_unit_upper(U: np.ndarray, b: np.ndarray) -> np.ndarray:
+    x = b.copy()
+    for k in range(len(b) - 1, -1, -1):
+        x[k] -= U[k, k + 1:] @ x[k + 1:]
+    return x
+
+
+def fos(F: np.ndarray, Y: np.ndarray, *, Fv: np.ndarray | None = None, Yv: np.ndarray | None = None,
+        max_terms: int | None = None, threshold: float | None = None, patience: int = 1,
+        weights: str = "lstsq", fit_intercept: bool = True) -> LinearFit:
+    """FOS selection per output column, then weights for the kept terms.
+
+    ``weights='lstsq'`` re-estimates the kept terms by least squares on the data (most
+    accurate); ``'recursion'`` uses the FOS coefficients of eq. A.14 / A.15 directly.
+    """
+    Y = _as2d(Y)
+    N, K = F.shape
+    pool = np.hstack([np.ones((N, 1)), F]) if fit_intercept else np.asarray(F, dtype=np.float64)
+    pool_v = None
+    if Fv is not None:
+        pool_v = np.hstack([np.ones((Fv.shape[0], 1)), Fv]) if fit_intercept else Fv
+        Yv = _as2d(Yv)
+    G = pool.T @ pool
+    forced = (0,) if fit_intercept else ()
+    coef = np.zeros((K, Y.shape[1]))
+    intercept = np.zeros(Y.shape[1])
+    selected: list[np.ndarray] = []
+    sizes = []
+    for q in range(Y.shape[1]):
+        y = Y[:, q]
+        path = fos_select(G, pool.T @ y, float(y @ y), forced=forced, max_terms=max_terms,
+                          threshold=threshold, Pv=pool_v, yv=None if Yv is None else Yv[:, q],
+                          patience=patience)
+        kept = path.order[:path.best]
+        if weights == "recursion":
+            w = path.coef_path[path.best - 1] if path.best else np.zeros(0)
+        else:
+            w = lstsq(pool[:, kept], y, fit_intercept=False).coef[:, 0] if len(kept) else np.zeros(0)
+        full = np.zeros(pool.shape[1])
+        full[kept] = w
+        if fit_intercept:
+            intercept[q] = full[0]
+            coef[:, q] = full[1:]
+            selected.append(np.sort(kept[kept > 0] - 1))
+        else:
+            coef[:, q] = full
+            selected.append(np.sort(kept))
+        sizes.append(int(len(kept)))
+    return LinearFit(coef, intercept, selected, info={"terms": sizes})

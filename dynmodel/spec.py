@@ -1,0 +1,425 @@
+"""The YAML spec: pydantic v2 models, loading, and one-line error messages.
+
+Top-level keys: ``name``, ``data``, ``model``, ``cost``, ``evaluation``, ``seed``, ``output``.
+``data`` is a file source (``path``) or a generator source (``generator``); ``model`` is a
+union keyed on ``family`` whose ``params`` are validated by the family's own pydantic model.
+Both unions are built from the installed plugins, so ``dynmodel schema`` shows every
+family's and generator's parameters. Unknown keys are rejected everywhere.
+"""
+from __future__ import annotations
+
+import difflib
+import json
+from functools import lru_cache
+from pathlib import Path
+from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origin
+
+import yaml
+from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PrivateAttr, Tag,
+                      ValidationError, create_model, field_validator, model_validator)
+
+from . import registry
+from .errors import SpecError
+
+SPLITS = ("train", "validation", "test")
+SplitName = Literal["train", "validation", "test"]
+COSTS = ("mse1", "mse_inf")
+METRICS = ("nmse", "max")
+
+
+class StrictModel(BaseModel):
+    """Base for every spec section: unknown keys are errors."""
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+
+SplitBound = Union[Annotated[float, Field(gt=0.0, le=1.0)], tuple[Annotated[int, Field(ge=0)], Annotated[int, Field(ge=0)]]]
+
+
+class SplitSpec(StrictModel):
+    """Where each split lies inside every recording of the main source.
+
+    Fractions are consecutive, in the order train, validation, test. Sample ranges are
+    half-open ``[start, stop)`` indices within each recording.
+    """
+
+    train: Optional[SplitBound] = None
+    validation: Optional[SplitBound] = None
+    test: Optional[SplitBound] = None
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "SplitSpec":
+        given = {k: v for k, v in self.items()}
+        if not given:
+            raise ValueError("give at least the train part, e.g. {train: 0.7, validation: 0.3}")
+        kinds = {type(v) is tuple for v in given.values()}
+        if len(kinds) > 1:
+            raise ValueError("use either fractions for every split or sample ranges for every split, not both")
+        if kinds == {False}:
+            total = sum(given.values())
+            if total > 1.0 + 1e-9:
+                raise ValueError(f"the fractions add up to {total:g}, more than 1")
+        else:
+            ranges = sorted((v[0], v[1], k) for k, v in given.items())
+            for a, b, k in ranges:
+                if b <= a:
+                    raise ValueError(f"{k} range [{a}, {b}] is empty; write [start, stop] with stop > start")
+            for (a1, b1, k1), (a2, b2, k2) in zip(ranges, ranges[1:]):
+                if a2 < b1:
+                    raise ValueError(f"{k1} [{a1}, {b1}] and {k2} [{a2}, {b2}] overlap")
+        return self
+
+    def items(self):
+        return [(k, getattr(self, k)) for k in SPLITS if getattr(self, k) is not None]
+
+
+class NoiseSpec(StrictModel):
+    """Gaussian measurement noise added to the output of chosen splits (noisy-training experiments)."""
+
+    std: float = Field(ge=0.0, description="noise std as a fraction of the clean output std")
+    splits: list[SplitName] = Field(default_factory=lambda: ["train", "validation"])
+    seed: Optional[int] = Field(None, description="noise seed; default derived from the spec seed")
+
+
+class FileSourceFields(StrictModel):
+    path: Union[str, list[str]] = Field(description="CSV/TXT (header row), NPZ, HDF5 or MATLAB .mat; a list means several recordings")
+    input: list[Union[str, int]] = Field(min_length=1, description="input columns (CSV header names, NPZ keys, HDF5 dataset paths, MAT variables; 'name[j]' picks column j)")
+    output: list[Union[str, int]] = Field(min_length=1, description="output columns")
+    header: bool = Field(True, description="text files: first row holds the column names")
+    columns: Optional[list[str]] = Field(None, description="names for the columns of a headerless text file")
+    delimiter: Optional[str] = Field(None, description="text files: field separator (detected when omitted)")
+    segments: Optional[list[tuple[int, int]]] = Field(None, description="several recordings inside one file, as [start, stop) sample ranges")
+    sampling_time: Optional[float] = Field(None, gt=0, description="seconds per sample (default 1)")
+
+
+class SeparateSource(StrictModel):
+    """A separate recording for one split; unset keys are taken from the main source."""
+
+    path: Optional[Union[str, list[str]]] = None
+    input: Optional[list[Union[str, int]]] = None
+    output: Optional[list[Union[str, int]]] = None
+    header: Optional[bool] = None
+    columns: Optional[list[str]] = None
+    delimiter: Optional[str] = None
+    segments: Optional[list[tuple[int, int]]] = None
+    sampling_time: Optional[float] = Field(None, gt=0)
+    generator: Optional[str] = None
+    params: Optional[dict[str, Any]] = None
+    n: Optional[int] = Field(None, gt=0)
+    seed: Optional[int] = None
+
+
+class DataCommon(StrictModel):
+    split: Optional[SplitSpec] = Field(None, description="default {train: 0.6, validation: 0.2, test: 0.2}; without test when a separate test source is given")
+    validation: Optional[SeparateSource] = Field(None, description="a separate validation recording")
+    test: Optional[SeparateSource] = Field(None, description="a separate test recording")
+    transient: int = Field(0, ge=0, description="samples excluded from fitting and scoring at the start of each split segment")
+    transient_at: Literal["segment", "recording"] = Field(
+        "segment", description="segment: the transient is cut at the start of every split segment; recording: only "
+        "where a recording starts (and the state restarts), so a segment continuing a run keeps all its samples")
+    delay_lines: list[Annotated[int, Field(gt=0)]] = Field(default_factory=list, description="extra copies of every input delayed by these numbers of samples (external memory, thesis 6.3.2)")
+    noise: Optional[NoiseSpec] = None
+    scaling: Literal["standard", "none"] = Field("standard", description="standard: zero mean, unit std per channel from the training split")
+
+
+class FileData(DataCommon, FileSourceFields):
+    pass
+
+
+class EvaluationSpec(StrictModel):
+    """Metrics on free-running predictions started at each recording's first sample (thesis 6.2.2)."""
+
+    metrics: list[Literal["nmse", "max"]] = Field(default_factory=lambda: ["nmse", "max"])
+    one_step: bool = Field(True, description="also report the one-step NMSE where the family distinguishes it")
+
+    @field_validator("metrics")
+    @classmethod
+    def _nonempty(cls, v: list[str]) -> list[str]:
+        if not v:
+            raise ValueError("list at least one metric: nmse, max")
+        return list(dict.fromkeys(v))
+
+
+def _data_tag(value: Any) -> str | None:
+    if isinstance(value, dict):
+        return f"generator:{value['generator']}" if "generator" in value else "file"
+    return getattr(value, "source_tag", None)
+
+
+def _generator_data_model(name: str, gen: Any) -> type[BaseModel]:
+    params_model = gen.Params
+    model = create_model(
+        f"GeneratorData_{name.replace('-', '_')}",
+        __base__=DataCommon,
+        __doc__=getattr(gen, "description", None) or f"data generated by '{name}'",
+        generator=(Literal[name], Field(description=getattr(gen, "description", ""))),
+        params=(params_model, Field(default_factory=params_model)),
+        n=(int, Field(10000, gt=0, description="number of samples")),
+        seed=(int, Field(0, description="seed of this realization")),
+        input=(Optional[list[str]], Field(None, description=f"generated inputs: {list(gen.input_names)}")),
+        output=(Optional[list[str]], Field(None, description=f"generated outputs: {list(gen.output_names)}")),
+        sampling_time=(Optional[float], Field(None, gt=0, description="taken from the generator when omitted")),
+    )
+    model.source_tag = property(lambda self: f"generator:{self.generator}")  # type: ignore[attr-defined]
+    return model
+
+
+def _model_spec_model(name: str, fam: Any) -> type[BaseModel]:
+    params_model = fam.Params
+    return create_model(
+        f"ModelSpec_{name.replace('-', '_')}",
+        __base__=StrictModel,
+        __doc__=getattr(fam, "description", None),
+        family=(Literal[name], ...),
+        params=(params_model, Field(default_factory=params_model)),
+    )
+
+
+@lru_cache(maxsize=None)
+def spec_model() -> type[BaseModel]:
+    """The Spec pydantic model for the installed plugins."""
+    fams = registry.families()
+    gens = registry.sources()
+    FileData.source_tag = property(lambda self: "file")  # type: ignore[attr-defined]
+    data_variants = [Annotated[FileData, Tag("file")]]
+    data_variants += [Annotated[_generator_data_model(n, g), Tag(f"generator:{n}")] for n, g in gens.items()]
+    DataSpec = Annotated[Union[tuple(data_variants)], Discriminator(_data_tag)]  # type: ignore[valid-type]
+    model_variants = [_model_spec_model(n, f) for n, f in fams.items()]
+    if not model_variants:
+        raise SpecError("no model family is installed", fix="pip install -e . in the dynmodel folder")
+    ModelSpec = (Annotated[Union[tuple(model_variants)], Field(discriminator="family")]
+                 if len(model_variants) > 1 else model_variants[0])
+
+    class Spec(StrictModel):
+        """A dynmodel experiment: data, model family, cost, evaluation."""
+
+        name: str = Field("model", description="experiment name, used for the default output file")
+        data: DataSpec  # type: ignore[valid-type]
+        model: ModelSpec  # type: ignore[valid-type]
+        cost: Literal["mse1", "mse_inf"] = Field("mse1", description="mse1: one-step error; mse_inf: free-running error")
+        evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec)
+        seed: int = Field(0, description="seed of every random choice in fitting (networks, noise)")
+        output: Optional[str] = Field(None, description="model file (HDF5); default <name>.h5 next to the spec")
+
+        _base_dir: Path = PrivateAttr(default_factory=Path.cwd)
+        _source: str = PrivateAttr(default="<spec>")
+
+        @property
+        def base_dir(self) -> Path:
+            return self._base_dir
+
+        @property
+        def source(self) -> str:
+            return self._source
+
+        def resolve_path(self, p: str) -> Path:
+            path = Path(p).expanduser()
+            return path if path.is_absolute() else (self._base_dir / path)
+
+        def output_path(self) -> Path:
+            return self.resolve_path(self.output or f"{self.name}.h5")
+
+        def resolved(self) -> dict[str, Any]:
+            """The full spec with defaults filled in and data paths made absolute."""
+            d = self.model_dump(mode="json")
+            for section in [d["data"], d["data"].get("test") or {}, d["data"].get("validation") or {}]:
+                p = section.get("path")
+                if isinstance(p, str):
+                    section["path"] = str(self.resolve_path(p))
+                elif isinstance(p, list):
+                    section["path"] = [str(self.resolve_path(x)) for x in p]
+            d["output"] = str(self.output_path())
+            return d
+
+    return Spec
+
+
+# ---------------------------------------------------------------- error formatting
+
+def _unwrap(tp: Any) -> Any:
+    while get_origin(tp) is Annotated:
+        tp = get_args(tp)[0]
+    return tp
+
+
+def _allowed_keys(loc: tuple) -> list[str] | None:
+    """Field names of the section that ``loc`` (ending with the bad key) points into."""
+    node: Any = spec_model()
+    for part in loc[:-1]:
+        node = _unwrap(node)
+        if isinstance(node, type) and issubclass(node, BaseModel):
+            if part not in node.model_fields:
+                return None
+            node = node.model_fields[part].annotation
+            continue
+        args = [_unwrap(a) for a in get_args(node) if a is not type(None)]
+        chosen = None
+        for a in args:
+            if isinstance(a, type) and issubclass(a, BaseModel):
+                fam = a.model_fields.get("family") or a.model_fields.get("generator")
+                tag = get_args(fam.annotation)[0] if fam is not None else None
+                if part in (tag, f"generator:{tag}") or (part == "file" and a.__name__ == "FileData"):
+                    chosen = a
+                    break
+        if chosen is None:
+            models = [a for a in args if isinstance(a, type) and issubclass(a, BaseModel)]
+            if len(models) == 1 and part in models[0].model_fields:
+                node = models[0].model_fields[part].annotation
+                continue
+            if not models:
+                return None
+            chosen = models[0]
+            if part not in ("file",) and part in chosen.model_fields:
+                node = chosen.model_fields[part].annotation
+                continue
+        node = chosen
+    node = _unwrap(node)
+    if isinstance(node, type) and issubclass(node, BaseModel):
+        return list(node.model_fields)
+    for a in get_args(node):
+        a = _unwrap(a)
+        if isinstance(a, type) and issubclass(a, BaseModel):
+            return list(a.model_fields)
+    return None
+
+
+def _dotted(loc: tuple) -> str:
+    parts = []
+    for p in loc:
+        if isinstance(p, str) and (p == "file" or p.startswith("generator:") or p.startswith("function-")):
+            continue
+        if isinstance(p, str) and parts == ["model"] and p in registry.families():
+            continue
+        parts.append(f"[{p}]" if isinstance(p, int) else str(p))
+    return ".".join(parts).replace(".[", "[")
+
+
+def _loc_without_tags(loc: tuple) -> tuple:
+    out = []
+    for p in loc:
+        if isinstance(p, str) and (p == "file" or p.startswith("generator:")):
+            continue
+        if isinstance(p, str) and out == ["model"] and p in registry.families():
+            continue
+        out.append(p)
+    return tuple(out)
+
+
+def format_validation_error(err: ValidationError, source: str) -> SpecError:
+    """Turn the first pydantic error into one line: where, what, how to fix."""
+    e = err.errors()[0]
+    loc = tuple(e["loc"])
+    where = f"{source}: {_dotted(loc)}" if loc else source
+    kind = e["type"]
+    if kind == "extra_forbidden":
+        key = str(loc[-1])
+        allowed = _allowed_keys(loc) or []
+        close = difflib.get_close_matches(key, allowed, n=1)
+        fix = f"did you mean '{close[0]}'?" if close else "remove it"
+        if allowed:
+            fix += f" Allowed keys here: {', '.join(allowed)}"
+        return SpecError(f"unknown key '{key}'", f"{source}: {_dotted(loc[:-1]) or 'top level'}", fix)
+    if kind == "missing":
+        return SpecError("required key is missing", where, f"add '{_dotted(loc[-1:])}'")
+    value = e.get("input")
+    shown = json.dumps(value, default=str) if not isinstance(value, dict) else "a mapping"
+    if len(shown) > 60:
+        shown = shown[:57] + "..."
+    msg = e["msg"]
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    return SpecError(f"{msg} (got {shown})", where, "correct this value (see `dynmodel schema`)")
+
+
+# ---------------------------------------------------------------- loading
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that rejects duplicate keys instead of silently keeping the last one."""
+
+
+def _construct_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False):
+    seen: dict[Any, Any] = {}
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            mark = key_node.start_mark
+            raise yaml.constructor.ConstructorError(
+                None, None, f"duplicate key '{key}' (first at line {seen[key] + 1})", mark)
+        seen[key] = key_node.start_mark.line
+    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def parse_yaml(text: str, source: str) -> dict[str, Any]:
+    try:
+        raw = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - safe loader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise SpecError(f"malformed YAML: {problem}", where,
+                        "check indentation, colons and brackets on that line") from None
+    if raw is None:
+        raise SpecError("the spec is empty", source, "write at least data: and model: sections")
+    if not isinstance(raw, dict):
+        raise SpecError(f"the spec must be a mapping of keys, not a {type(raw).__name__}", source,
+                        "start with 'name:', 'data:', 'model:' lines")
+    return raw
+
+
+def _precheck_plugins(raw: dict[str, Any], source: str) -> None:
+    """Name unknown families and generators with the installed alternatives."""
+    model = raw.get("model")
+    if isinstance(model, dict) and "family" in model:
+        known = sorted(registry.families())
+        if model["family"] not in known:
+            what, fix = registry.unknown_name_message("family", str(model["family"]), known)
+            raise SpecError(what, f"{source}: model.family", fix)
+    data = raw.get("data")
+    for section, where in [(data, "data"), ((data or {}).get("test") if isinstance(data, dict) else None, "data.test"),
+                           ((data or {}).get("validation") if isinstance(data, dict) else None, "data.validation")]:
+        if isinstance(section, dict) and "generator" in section:
+            known = sorted(registry.sources())
+            if section["generator"] not in known:
+                what, fix = registry.unknown_name_message("generator", str(section["generator"]), known)
+                raise SpecError(what, f"{source}: {where}.generator", fix)
+    if isinstance(data, dict) and "path" in data and "generator" in data:
+        raise SpecError("give either 'path' (measured data) or 'generator', not both", f"{source}: data",
+                        "remove one of them")
+
+
+def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | None = None):
+    """Validate a spec mapping; raises SpecError with one line on the first problem."""
+    _precheck_plugins(raw, source)
+    if isinstance(raw.get("data"), dict) and not ({"path", "generator"} & set(raw["data"])):
+        raise SpecError("data needs either 'path' (a measured-data file) or 'generator' (a built-in system)",
+                        f"{source}: data", "add 'path: file.csv' with input/output columns, or 'generator: narx-system'")
+    try:
+        spec = spec_model().model_validate(raw)
+    except ValidationError as err:
+        raise format_validation_error(err, source) from None
+    spec._base_dir = (base_dir or Path.cwd()).resolve()
+    spec._source = source
+    return spec
+
+
+def load_spec(path: str | Path):
+    """Load and validate a YAML spec file. Relative paths inside resolve against its folder."""
+    p = Path(path)
+    if not p.exists():
+        raise SpecError("spec file not found", str(p), "check the path")
+    if p.is_dir():
+        raise SpecError("is a folder, not a spec file", str(p), "pass the YAML file")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SpecError(f"cannot read the spec ({exc})", str(p), "check the file") from None
+    raw = parse_yaml(text, str(p))
+    raw.setdefault("name", p.stem)
+    return validate_spec(raw, str(p), p.parent)
+
+
+def spec_json_schema() -> dict[str, Any]:
+    return spec_model().model_json_schema()

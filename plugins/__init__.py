@@ -1,0 +1,1 @@
+"""Built-in dynmodel plugins (families and data generators), registered through entry points."""

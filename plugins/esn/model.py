@@ -1,0 +1,249 @@
+"""Echo state networks: internal and external approach (thesis 5.2.3, 5.3.2).
+
+Internal mode (eq. 5.41): x_t = a x_{t-1} + g tanh(C x_{t-1} + c0 + B u_t), y_t = W x_t + w0.
+External mode (eq. 5.42 / 5.43): the delayed output is a second drive, measured while training
+(teacher forcing), fed back from the network's own output in free run after ``tune_in``
+measured samples. With ``cost: mse_inf`` the output weights of an external network are refined
+on free-running error by the predictor-corrector algorithm of section 5.3.2.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from dynmodel import kernels
+from dynmodel import regression
+from dynmodel.data.training import TrainingData
+from dynmodel.family import Family, Progress, Simulation, no_progress
+
+from .network import Network, build_network, largest_singular_value, spectral_radius
+from .params import EsnParams
+
+
+def _teacher_feedback(y: np.ndarray) -> np.ndarray:
+    """f_t = y_{t-1}, with y_0 held at t = 0."""
+    f = np.empty_like(y)
+    f[0] = y[0]
+    f[1:] = y[:-1]
+    return f
+
+
+class EchoStateNetwork(Family):
+    name = "esn"
+    description = "echo state network, internal or external approach (thesis 5.2.3, 5.3.2)"
+    Params = EsnParams
+
+    params: EsnParams
+
+    # ------------------------------------------------------------------ structure
+    @property
+    def external(self) -> bool:
+        return self.params.mode == "external"
+
+    @property
+    def warmup(self) -> int:
+        return self.params.tune_in if self.external else 0
+
+    def _drive(self, u: np.ndarray, f: np.ndarray | None) -> np.ndarray:
+        return u if f is None else np.hstack([u, f])
+
+    def _states(self, v: np.ndarray) -> np.ndarray:
+        return kernels.drive(*self.network_.kernel_args(), np.ascontiguousarray(v), np.zeros(self.network_.size))
+
+    def _features(self, X: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return np.hstack([X, v]) if self.params.readout.direct else X
+
+    def _set_readout(self, fit: regression.LinearFit) -> None:
+        m = self.network_.size
+        self.W_ = np.ascontiguousarray(fit.coef[:m].T)
+        n_drive = self.network_.B.shape[1]
+        self.D_ = np.ascontiguousarray(fit.coef[m:].T) if self.params.readout.direct else np.zeros((fit.coef.shape[1], n_drive))
+        self.w0_ = np.asarray(fit.intercept, dtype=np.float64).copy()
+
+    @property
+    def selected_(self) -> list[np.ndarray]:
+        """Per output: indices of the readout features (states, then drive) with nonzero weight."""
+        return [np.flatnonzero(np.concatenate([self.W_[k], self.D_[k]])) for k in range(self.W_.shape[0])]
+
+    def _readout_vector(self) -> np.ndarray:
+        return np.concatenate([self.W_.ravel(), self.D_.ravel(), self.w0_])
+
+    def _set_readout_vector(self, vec: np.ndarray) -> None:
+        nw, nd = self.W_.size, self.D_.size
+        self.W_ = vec[:nw].reshape(self.W_.shape).copy()
+        self.D_ = vec[nw:nw + nd].reshape(self.D_.shape).copy()
+        self.w0_ = vec[nw + nd:].copy()
+
+    def _solve_readout(self, F: np.ndarray, Y: np.ndarray, Fv: np.ndarray | None, Yv: np.ndarray | None):
+        r = self.params.readout
+        if r.solver == "lstsq":
+            return regression.lstsq(F, Y, rcond=r.rcond)
+        if r.solver == "ridge":
+            if r.ridge == "auto" and Fv is None:
+                raise ValueError("readout.ridge: auto needs a validation split; give a number or a validation split")
+            return regression.ridge(F, Y, r.ridge, Fv, Yv)
+        return regression.fos(F, Y, Fv=Fv, Yv=Yv, max_terms=r.max_terms, threshold=r.threshold, patience=r.patience)
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, data: TrainingData, cost: str = "mse1", rng: np.random.Generator | None = None,
+            progress: Progress = no_progress) -> "EchoStateNetwork":
+        rng = rng if rng is not None else np.random.default_rng(0)
+        self.n_inputs_ = data.n_inputs
+        self.n_outputs_ = data.n_outputs
+        self.network_ = build_network(self.params, data.n_inputs, data.n_outputs, rng)
+        self.y_rest_ = np.zeros(data.n_outputs) if not data.has("train") else np.nanmean(data.targets("train"), axis=0)
+        self._bounds = data.output_bounds()
+        progress("states", None, f"driving {self.network_.size} elements")
+        drives = [self._drive(s.u, _teacher_feedback(s.y) if self.external else None) for s in data.series]
+        states = [self._states(v) for v in drives]
+        feats = [self._features(X, v) for X, v in zip(states, drives)]
+        F, Y = data.stack("train", feats), data.targets("train")
+        if not np.isfinite(F).all():
+            raise ValueError("the external mode needs measured outputs before every training sample; "
+                             "put the test split after the training and validation splits")
+        Fv = data.stack("validation", feats) if data.has("validation") else None
+        Yv = data.targets("validation") if data.has("validation") else None
+        progress("readout", None, f"{self.params.readout.solver} readout on {F.shape[0]} samples")
+        self._set_readout(self._solve_readout(F, Y, Fv, Yv))
+        self.refinement_: list[dict[str, float]] = []
+        if cost == "mse_inf" and self.external:
+            self._refine(data, progress)
+        return self
+
+    def _free_runs(self, data: TrainingData, mix: float, store: bool):
+        out = []
+        args = self.network_.kernel_args()
+        lo, hi = self._bounds
+        for s in data.series:
+            out.append(kernels.free_run(*args, np.ascontiguousarray(s.u), np.ascontiguousarray(s.y),
+                                        min(self.params.tune_in, s.n), mix, self.W_, self.D_, self.w0_,
+                                        self.y_rest_, lo, hi, np.zeros(self.network_.size), store))
+        return out
+
+    def _free_run_error(self, data: TrainingData) -> float:
+        """Mean NMSE (fraction) over outputs of the pure free run on validation (else training) rows."""
+        split = "validation" if data.has("validation") else "train"
+        runs = self._free_runs(data, 0.0, False)
+        if any(r[3] >= 0 for r in runs):
+            return np.inf
+        pred = data.stack(split, [r[1] for r in runs])
+        target = data.targets(split)
+        return float(np.mean(np.mean((target - pred) ** 2, axis=0) / np.maximum(np.var(target, axis=0), 1e-300)))
+
+    def _refine(self, data: TrainingData, progress: Progress) -> None:
+        """Thesis 5.3.2 refinement: states of the free run (feedback = current weights) give new
+        least-squares weights w~; w <- (1 - alpha) w + alpha w~; keep the weights with the lowest
+        free-running validation error. If the one-step weights diverge in free run, the fed-back
+        signal starts as a mixture of measured and predicted output and moves to pure prediction
+        over ``ramp`` iterations (error propagation, thesis 6.3.2)."""
+        r = self.params.refinement
+        best_vec = self._readout_vector()
+        best_err = self._free_run_error(data)
+        unstable = not np.isfinite(best_err)
+        self.refinement_ = [{"iteration": 0, "mix": 1.0 if unstable else 0.0, "validation_nmse": 100 * best_err}]
+        mix = 1.0 if unstable else 0.0
+        since_best = 0
+        for it in range(1, r.max_iter + 1):
+            if unstable:
+                mix = max(0.0, 1.0 - it / r.ramp)
+            runs = self._free_runs(data, mix, True)
+            if any(run[3] >= 0 for run in runs):
+                if mix == 0.0 and not unstable:
+                    break
+                continue
+            feats = [self._features(run[0], self._drive(s.u, run[2])) for run, s in zip(runs, data.series)]
+            F, Y = data.stack("train", feats), data.targets("train")
+            Fv = data.stack("validation", feats) if data.has("validation") else None
+            Yv = data.targets("validation") if data.has("validation") else None
+            current = self._readout_vector()
+            self._set_readout(self._solve_readout(F, Y, Fv, Yv))
+            self._set_readout_vector((1.0 - r.alpha) * current + r.alpha * self._readout_vector())
+            err = self._free_run_error(data)
+            self.refinement_.append({"iteration": it, "mix": mix, "validation_nmse": 100 * err})
+            progress("refine", it / r.max_iter, f"iteration {it}: free-run validation NMSE {100 * err:.4g} %")
+            if err < best_err:
+                best_err, best_vec, since_best = err, self._readout_vector(), 0
+            elif mix == 0.0:
+                since_best += 1
+                if since_best >= r.patience:
+                    break
+        # without any stable iterate best_vec is still the one-step solution; evaluation reports the divergence
+        self._set_readout_vector(best_vec)
+
+    # ------------------------------------------------------------------ prediction
+    def simulate(self, u: np.ndarray, y_measured: np.ndarray | None = None,
+                 bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Simulation:
+        self.check_fitted()
+        u = np.ascontiguousarray(u, dtype=np.float64)
+        if not self.external:
+            # no feedback: the output is a static map of bounded states and cannot diverge
+            X = self._states(u)
+            return Simulation(X @ self.W_.T + self._drive_direct(u) + self.w0_, None)
+        tune = min(self.params.tune_in, u.shape[0])
+        if tune > 0 and (y_measured is None or len(y_measured) < tune):
+            have = 0 if y_measured is None else len(y_measured)
+            raise ValueError(f"this external-mode network tunes in on the first {tune} measured output samples; "
+                             f"got {have}")
+        Y = np.zeros((0, self.n_outputs_)) if tune == 0 else np.ascontiguousarray(y_measured[:tune], dtype=np.float64)
+        lo, hi = bounds if bounds is not None else (np.full(self.n_outputs_, -np.inf), np.full(self.n_outputs_, np.inf))
+        _, y, _, div = kernels.free_run(*self.network_.kernel_args(), u, Y.reshape(-1, self.n_outputs_), tune, 0.0,
+                                        self.W_, self.D_, self.w0_, self.y_rest_, lo, hi,
+                                        np.zeros(self.network_.size), False)
+        return Simulation(y, None if div < 0 else int(div))
+
+    def _drive_direct(self, u: np.ndarray) -> np.ndarray:
+        return u @ self.D_[:, :u.shape[1]].T
+
+    def predict_one_step(self, u: np.ndarray, y_measured: np.ndarray) -> np.ndarray | None:
+        if not self.external:
+            return None
+        v = self._drive(np.asarray(u, dtype=np.float64), _teacher_feedback(np.asarray(y_measured, dtype=np.float64)))
+        X = self._states(v)
+        return X @ self.W_.T + v @ self.D_.T + self.w0_
+
+    # ------------------------------------------------------------------ reliability hooks
+    def state_update(self, X: np.ndarray, V: np.ndarray) -> np.ndarray:
+        """One step of the state equation for many replicas: X (R, M), V (R, n_drive)."""
+        out = np.empty_like(X)
+        kernels.step_batch(*self.network_.kernel_args(), np.ascontiguousarray(X), np.ascontiguousarray(V), out)
+        return out
+
+    # ------------------------------------------------------------------ persistence
+    def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        net = self.network_
+        arrays = {
+            "C_indptr": net.C.indptr.astype(np.int64), "C_indices": net.C.indices.astype(np.int64),
+            "C_data": net.C.data, "B_in": net.B_in, "B_back": net.B_back, "c0": net.c0,
+            "relaxation": net.a, "gain": net.g, "W": self.W_, "D": self.D_, "w0": self.w0_,
+            "y_rest": self.y_rest_,
+        }
+        attrs = {"size": net.size, "mode": self.params.mode, "n_inputs": self.n_inputs_,
+                 "n_outputs": self.n_outputs_, "refinement": self.refinement_}
+        return arrays, attrs
+
+    @classmethod
+    def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray], attrs: dict[str, Any]):
+        self = cls(**params)
+        m = int(attrs["size"])
+        C = sp.csr_matrix((arrays["C_data"], arrays["C_indices"], arrays["C_indptr"]), shape=(m, m))
+        self.network_ = Network(C, arrays["B_in"], arrays["B_back"].reshape(m, -1), arrays["c0"],
+                                arrays["relaxation"], arrays["gain"])
+        self.W_, self.D_, self.w0_ = arrays["W"], arrays["D"], arrays["w0"]
+        self.y_rest_ = arrays["y_rest"]
+        self.n_inputs_, self.n_outputs_ = int(attrs["n_inputs"]), int(attrs["n_outputs"])
+        self.refinement_ = list(attrs.get("refinement") or [])
+        return self
+
+    def summary(self) -> dict[str, Any]:
+        net = self.network_
+        info = {"elements": net.size, "mode": self.params.mode, "connections": int(net.C.nnz),
+                "sigma(C)": round(largest_singular_value(net.C), 6), "rho(C)": round(spectral_radius(net.C), 6),
+                "readout": self.params.readout.solver}
+        info["readout terms"] = [int(len(s)) for s in self.selected_]
+        if self.external:
+            info["tune_in"] = self.params.tune_in
+            if len(self.refinement_) > 1:
+                info["refinement iterations"] = len(self.refinement_) - 1
+        return info

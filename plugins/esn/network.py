@@ -1,0 +1,114 @@
+"""Random sparse networks of tanh elements and their algebraic properties (thesis 5.2.3, 5.3.1)."""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .params import EsnParams
+
+_DENSE_LIMIT = 2000
+
+
+@dataclass
+class Network:
+    """x_t = a x_{t-1} + g tanh(C x_{t-1} + c0 + B_in u_t + B_back f_t)."""
+
+    C: sp.csr_matrix
+    B_in: np.ndarray  # (M, n_inputs)
+    B_back: np.ndarray  # (M, n_outputs); empty columns in internal mode
+    c0: np.ndarray
+    a: np.ndarray
+    g: np.ndarray
+
+    @property
+    def size(self) -> int:
+        return self.c0.shape[0]
+
+    @property
+    def B(self) -> np.ndarray:
+        return np.hstack([self.B_in, self.B_back])
+
+    def kernel_args(self) -> tuple:
+        C = self.C
+        return (C.indptr.astype(np.int64), C.indices.astype(np.int64), C.data.astype(np.float64),
+                np.ascontiguousarray(self.B), self.c0, self.a, self.g)
+
+
+def largest_singular_value(C: sp.spmatrix) -> float:
+    if C.nnz == 0:
+        return 0.0
+    if C.shape[0] <= _DENSE_LIMIT:
+        return float(np.linalg.norm(C.toarray(), 2))
+    return float(sp.linalg.svds(C.astype(np.float64), k=1, return_singular_vectors=False)[0])
+
+
+def spectral_radius(C: sp.spmatrix) -> float:
+    if C.nnz == 0:
+        return 0.0
+    if C.shape[0] <= _DENSE_LIMIT:
+        return float(np.max(np.abs(np.linalg.eigvals(C.toarray()))))
+    return float(np.abs(sp.linalg.eigs(C.astype(np.float64), k=1, which="LM", return_eigenvectors=False)[0]))
+
+
+def _sparse_normal(rng: np.random.Generator, shape: tuple[int, int], p: float, std: float,
+                   every_column: bool) -> np.ndarray:
+    """Entries nonzero with probability p, values N(0, std^2); optionally at least one per column."""
+    mask = rng.random(shape) < p
+    values = std * rng.standard_normal(shape)
+    if every_column and shape[0] > 0:
+        for j in np.flatnonzero(~mask.any(axis=0)):
+            mask[rng.integers(shape[0]), j] = True
+    return np.where(mask, values, 0.0)
+
+
+def _as_matrix(v, rows: int, cols: int, what: str) -> np.ndarray:
+    a = np.asarray(v, dtype=np.float64)
+    if a.ndim == 1:
+        a = a[:, None]
+    if a.shape != (rows, cols):
+        raise ValueError(f"weights.{what} has shape {a.shape}; expected ({rows}, {cols})")
+    return a
+
+
+def build_network(p: EsnParams, n_inputs: int, n_outputs: int, rng: np.random.Generator) -> Network:
+    """A random network as in thesis 5.3.2 (or the explicit matrices of ``p.weights``)."""
+    m = p.size
+    n_back = n_outputs if p.mode == "external" else 0
+    if p.weights is not None:
+        w = p.weights
+        C = np.asarray(w.C, dtype=np.float64)
+        B_in = (_as_matrix(w.b, m, n_inputs, "b") if w.b is not None
+                else _sparse_normal(rng, (m, n_inputs), p.input_connectivity, p.input_scale, True))
+        B_back = (_as_matrix(w.b_back, m, n_back, "b_back") if (w.b_back is not None and n_back)
+                  else _sparse_normal(rng, (m, n_back), p.input_connectivity, p.feedback_scale, True))
+        c0 = np.asarray(w.c0, dtype=np.float64) if w.c0 is not None else np.zeros(m)
+        a = np.asarray(w.relaxation, dtype=np.float64) if w.relaxation is not None else None
+    else:
+        C = _sparse_normal(rng, (m, m), float(p.connectivity), 1.0, False)
+        B_in = _sparse_normal(rng, (m, n_inputs), p.input_connectivity, p.input_scale, True)
+        B_back = _sparse_normal(rng, (m, n_back), p.input_connectivity, p.feedback_scale, True)
+        c0 = _sparse_normal(rng, (m, 1), p.bias_connectivity, p.bias_scale, False)[:, 0]
+        a = None
+    if a is None:
+        if isinstance(p.relaxation, tuple):
+            a = rng.uniform(p.relaxation[0], p.relaxation[1], m)
+        else:
+            a = np.full(m, float(p.relaxation))
+    g = 1.0 - np.abs(a) if p.relaxation_gain else np.ones(m)
+    Cs = sp.csr_matrix(C)
+    assert p.scale is not None
+    if p.scale.by == "singular":
+        s = largest_singular_value(Cs)
+        if s > 0:
+            Cs = Cs * (p.scale.value / s)
+    elif p.scale.by == "spectral":
+        warnings.warn("scaling C by its spectral radius does not guarantee a reliable network "
+                      "(thesis 5.3.1, eq. 5.28); scale.by: singular does", stacklevel=2)
+        r = spectral_radius(Cs)
+        if r > 0:
+            Cs = Cs * (p.scale.value / r)
+    Cs.sort_indices()
+    return Network(Cs.tocsr(), B_in, B_back, c0, a, g)

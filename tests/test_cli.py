@@ -1,0 +1,181 @@
+"""The command line: the README flow, and one clear line (no traceback) for every bad input."""
+from __future__ import annotations
+
+import json
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+import yaml
+
+import dynmodel
+
+from conftest import ROOT, narx, narx_spec, write_csv, write_yaml
+
+
+@pytest.fixture
+def quick_spec(tmp_path):
+    spec = yaml.safe_load((ROOT / "specs/quickstart.yaml").read_text())
+    spec["data"]["n"] = 4000
+    spec["data"]["test"]["n"] = 3000
+    spec["data"]["transient"] = 200
+    spec["output"] = str(tmp_path / "quick.h5")
+    return write_yaml(tmp_path / "quick.yaml", spec)
+
+
+def test_fit_predict_inspect_round_trip(cli, tmp_path, quick_spec):
+    r = cli("fit", quick_spec, "--json", tmp_path / "fit.json", "--plot", tmp_path / "fit.png", "-q")
+    assert r.exit_code == 0, r.stderr
+    for header in ("split", "NMSE %", "MAX", "train", "validation", "test"):
+        assert header in r.stdout
+    report = json.loads((tmp_path / "fit.json").read_text())
+    assert set(report) == {"metrics", "model"}
+    assert set(report["metrics"]) == {"train", "validation", "test"}
+    assert set(report["metrics"]["test"]) >= {"nmse", "max", "samples", "nmse_1"}
+    assert report["metrics"]["test"]["nmse"] < 0.1  # external ESN on the NARX system
+    assert (tmp_path / "fit.png").stat().st_size > 10000
+
+    u, y = narx(1200, 77)
+    write_csv(tmp_path / "new.csv", {"u": u, "y": y})
+    r = cli("predict", report["model"], "--input", tmp_path / "new.csv", "--out", tmp_path / "pred.csv")
+    assert r.exit_code == 0, r.stderr
+    pred = np.loadtxt(tmp_path / "pred.csv", delimiter=",", skiprows=1)
+    model = dynmodel.load(report["model"])
+    np.testing.assert_allclose(pred[:, 1], model.predict(u, y_tune=y[:model.warmup])[:, 0], rtol=1e-9, atol=1e-12)
+    assert (tmp_path / "pred.csv").read_text().splitlines()[0] == "t,y"
+
+    r = cli("inspect", report["model"], "--json", tmp_path / "inspect.json")
+    assert r.exit_code == 0 and "sigma(C)" in r.stdout and "esn" in r.stdout
+    summary = json.loads((tmp_path / "inspect.json").read_text())
+    assert summary["model"]["mode"] == "external" and summary["tune_in_samples"] == 100
+
+
+def test_out_overrides_the_spec_output(cli, tmp_path, quick_spec):
+    r = cli("fit", quick_spec, "--out", tmp_path / "other.h5", "-q")
+    assert r.exit_code == 0 and (tmp_path / "other.h5").exists() and not (tmp_path / "quick.h5").exists()
+
+
+def test_external_model_asks_for_tune_in_outputs(cli, tmp_path, quick_spec):
+    cli("fit", quick_spec, "-q")
+    u, _ = narx(500, 3)
+    write_csv(tmp_path / "only_u.csv", {"u": u})
+    r = cli("predict", tmp_path / "quick.h5", "--input", tmp_path / "only_u.csv")
+    assert r.exit_code == 2
+    assert "tunes in on the first 100 measured samples of output column(s) 'y'" in r.stderr
+    assert "--tune-in" in r.stderr and "Traceback" not in r.stderr + r.stdout
+    write_csv(tmp_path / "tune.csv", {"y": narx(500, 3)[1]})
+    r = cli("predict", tmp_path / "quick.h5", "--input", tmp_path / "only_u.csv", "--tune-in", tmp_path / "tune.csv")
+    assert r.exit_code == 0 and len(r.stdout.splitlines()) == 501
+
+
+def test_plugins_schema_validate_generate(cli, tmp_path):
+    r = cli("plugins")
+    assert r.exit_code == 0 and "esn" in r.stdout and "rossler-lorenz" in r.stdout
+    r = cli("schema")
+    schema = json.loads(r.stdout)
+    assert "properties" in schema and "model" in schema["properties"]
+    r = cli("validate", ROOT / "specs/examples/file-example.yaml")
+    assert r.exit_code == 0 and "train.csv[0:7000]" in r.stdout and "6000" in r.stdout
+    r = cli("generate", "driven-logistic", "--n", 300, "--seed", 4, "--out", tmp_path / "g.csv", "-p", "alpha=0.3")
+    assert r.exit_code == 0
+    data = np.loadtxt(tmp_path / "g.csv", delimiter=",", skiprows=1)
+    assert data.shape == (300, 3) and (tmp_path / "g.csv").read_text().startswith("t,u,y")
+    u, y = data[:, 1], data[:, 2]
+    assert np.allclose(y[1:], 0.7 * 4 * y[:-1] * (1 - y[:-1]) + 0.3 * u[1:], atol=1e-9)
+
+
+# ------------------------------------------------------------------------------ bad input
+
+def _one_line_error(r, code: int = 2) -> str:
+    assert r.exit_code == code, (r.exit_code, r.stdout, r.stderr)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
+    assert "Traceback" not in r.stdout + r.stderr
+    assert "Fix:" in lines[0]
+    return lines[0]
+
+
+def test_malformed_yaml(cli, tmp_path):
+    (tmp_path / "s.yaml").write_text("data:\n  generator: narx-system\n   n: 5\n")
+    line = _one_line_error(cli("fit", tmp_path / "s.yaml"))
+    assert "s.yaml:3:" in line and "malformed YAML" in line
+
+
+def test_unknown_key(cli, tmp_path):
+    spec = narx_spec()
+    spec["data"]["transcient"] = 5
+    line = _one_line_error(cli("fit", write_yaml(tmp_path / "s.yaml", spec)))
+    assert "unknown key 'transcient'" in line and "did you mean 'transient'" in line
+
+
+@pytest.mark.parametrize("where, value, expected", [
+    ("family", "narxx", "unknown family 'narxx'"),
+    ("generator", "narx", "unknown generator 'narx'"),
+])
+def test_unknown_family_or_generator(cli, tmp_path, where, value, expected):
+    spec = narx_spec()
+    if where == "family":
+        spec["model"]["family"] = value
+    else:
+        spec["data"]["generator"] = value
+    line = _one_line_error(cli("fit", write_yaml(tmp_path / "s.yaml", spec)))
+    assert expected in line and ("esn" in line if where == "family" else "narx-system" in line)
+
+
+def test_missing_column_and_missing_file(cli, tmp_path, narx_csvs):
+    spec = {"data": {"path": "train.csv", "input": ["position"], "output": ["y"]}, "model": {"family": "esn"}}
+    line = _one_line_error(cli("fit", write_yaml(tmp_path / "s.yaml", spec)))
+    assert "no column 'position'" in line and "train.csv" in line and "u, y" in line
+    spec["data"]["path"] = "nope.csv"
+    line = _one_line_error(cli("fit", write_yaml(tmp_path / "s.yaml", spec)))
+    assert "nope.csv: file not found" in line
+
+
+def test_nan_in_data(cli, tmp_path):
+    u, y = narx(3000, 1)
+    y[1234] = np.nan
+    write_csv(tmp_path / "d.csv", {"u": u, "y": y})
+    spec = {"data": {"path": "d.csv", "input": ["u"], "output": ["y"]}, "model": {"family": "esn"}}
+    line = _one_line_error(cli("fit", write_yaml(tmp_path / "s.yaml", spec)))
+    assert "column 'y' has NaN at sample 1234" in line and "d.csv" in line
+
+
+def test_series_too_short_for_split_and_transient(cli, tmp_path):
+    spec = narx_spec(n=3000, test_n=800, transient=1000)
+    line = _one_line_error(cli("fit", write_yaml(tmp_path / "s.yaml", spec)))
+    assert "test split has no sample left after the transient of 1000" in line and "data.transient" in line
+
+
+def test_diverging_free_run_names_the_sample(cli, tmp_path):
+    # plain least squares on every state, no tune-in: the fed-back output explodes at once
+    spec = narx_spec(mode="external", n=3000, test_n=1000, transient=200, tune_in=0,
+                     readout={"solver": "lstsq", "direct": False})
+    spec["output"] = str(tmp_path / "div.h5")
+    r = cli("fit", write_yaml(tmp_path / "s.yaml", spec), "--json", tmp_path / "div.json", "-q")
+    line = _one_line_error(r, code=1)
+    report = json.loads((tmp_path / "div.json").read_text())
+    bad = next(m["unstable_from"] for m in report["metrics"].values() if m.get("unstable_from"))
+    assert f"diverged on the train split at sample {bad['sample']}" in line
+    assert "unstable from t =" in r.stdout
+    assert (tmp_path / "div.h5").exists()  # kept for inspection
+
+
+def test_corrupt_and_newer_model_files(cli, tmp_path, quick_spec):
+    u, _ = narx(100, 1)
+    write_csv(tmp_path / "u.csv", {"u": u})
+    (tmp_path / "bad.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 100)
+    line = _one_line_error(cli("predict", tmp_path / "bad.h5", "--input", tmp_path / "u.csv"))
+    assert "not a readable HDF5 model file" in line
+    cli("fit", quick_spec, "-q")
+    shutil.copy(tmp_path / "quick.h5", tmp_path / "newer.h5")
+    with h5py.File(tmp_path / "newer.h5", "a") as f:
+        f.attrs["format_version"] = 99
+    line = _one_line_error(cli("inspect", tmp_path / "newer.h5"))
+    assert "newer dynmodel" in line and "upgrade" in line
+
+
+def test_bad_option_values_are_usage_errors(cli, tmp_path):
+    r = cli("generate", "linear-system", "--out", tmp_path / "x.csv", "-p", "a0=2.5")
+    line = _one_line_error(r)
+    assert "--param" in line

@@ -1,0 +1,148 @@
+"""Data sources, splits, transient, noise, delay lines, scaling and the family's view."""
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+import scipy.io
+
+from dynmodel.data import Preprocessor, delayed_copies, load_dataset, training_data
+from dynmodel.data.readers import read_columns
+from dynmodel.errors import DataError
+
+from conftest import make_spec, narx, narx_spec, write_csv
+
+
+def _file_spec(path, **data):
+    raw = {"data": {"path": str(path), "input": ["u"], "output": ["y"], **data}, "model": {"family": "esn"}}
+    return make_spec(raw, path.parent)
+
+
+@pytest.fixture
+def columns():
+    rng = np.random.default_rng(5)
+    return {"u": rng.standard_normal(50), "y": rng.standard_normal(50), "q": rng.standard_normal(50)}
+
+
+def test_every_format_reads_the_same_columns(tmp_path, columns):
+    csv = write_csv(tmp_path / "d.csv", columns)
+    np.savez(tmp_path / "d.npz", **columns)
+    with h5py.File(tmp_path / "d.h5", "w") as f:
+        for k, v in columns.items():
+            f.create_dataset(f"g/{k}", data=v)
+    scipy.io.savemat(tmp_path / "d.mat", {k: v[:, None] for k, v in columns.items()})
+    ref = read_columns(csv, ["u", "y"])
+    for path, sel in [(tmp_path / "d.npz", ["u", "y"]), (tmp_path / "d.h5", ["g/u", "g/y"]), (tmp_path / "d.mat", ["u", "y"])]:
+        got = read_columns(path, sel)
+        np.testing.assert_array_equal(got[sel[0]], ref["u"])
+        np.testing.assert_array_equal(got[sel[1]], ref["y"])
+
+
+def test_headerless_tab_separated_text_with_column_names(tmp_path, columns):
+    path = tmp_path / "rig.txt"
+    np.savetxt(path, np.column_stack([columns["u"], columns["y"]]), delimiter="\t", fmt="%.17g")
+    got = read_columns(path, ["pos", "force"], header=False, columns=["pos", "force"])
+    np.testing.assert_array_equal(got["force"], columns["y"])
+    got = read_columns(path, [1], header=False)
+    np.testing.assert_array_equal(got["1"], columns["y"])
+
+
+def test_two_dimensional_arrays_pick_columns(tmp_path):
+    a = np.arange(20.0).reshape(10, 2)
+    np.savez(tmp_path / "m.npz", a=a)
+    np.testing.assert_array_equal(read_columns(tmp_path / "m.npz", ["a[1]"])["a[1]"], a[:, 1])
+    with pytest.raises(DataError, match="shape"):
+        read_columns(tmp_path / "m.npz", ["a"])
+
+
+def test_missing_column_lists_the_available_ones(tmp_path, columns):
+    csv = write_csv(tmp_path / "d.csv", columns)
+    with pytest.raises(DataError) as info:
+        load_dataset(_file_spec(csv, input=["x"]))
+    assert "no column 'x'" in str(info.value) and "u, y, q" in str(info.value) and "d.csv" in str(info.value)
+
+
+def test_nan_and_inf_are_located(tmp_path, columns):
+    columns["y"][17] = np.nan
+    columns["y"][30] = np.inf
+    csv = write_csv(tmp_path / "d.csv", columns)
+    with pytest.raises(DataError) as info:
+        load_dataset(_file_spec(csv))
+    assert "column 'y' has NaN at sample 17 (2 non-finite values" in str(info.value)
+
+
+def test_text_cell_that_is_not_a_number(tmp_path):
+    (tmp_path / "d.csv").write_text("u,y\n1,2\n3,abc\n")
+    with pytest.raises(DataError, match="'abc' at line 3"):
+        read_columns(tmp_path / "d.csv", ["u", "y"])
+
+
+def test_fraction_and_range_splits_with_transient():
+    spec = make_spec(narx_spec(n=1000, test_n=500, split={"train": 0.7, "validation": 0.3}, transient=100))
+    ds = load_dataset(spec)
+    assert ds.ranges["train"] == [(0, 0, 700)] and ds.ranges["validation"] == [(0, 700, 1000)]
+    assert ds.ranges["test"] == [(1, 0, 500)]
+    assert ds.scored("validation") == [(0, 800, 1000)] and ds.n_scored("test") == 400
+    raw = narx_spec(n=2000, split={"train": [0, 800], "validation": [800, 1000], "test": [1000, 2000]}, transient=50)
+    raw["data"].pop("test")
+    ds = load_dataset(make_spec(raw))
+    assert [ds.scored(s) for s in ("train", "validation", "test")] == [[(0, 50, 800)], [(0, 850, 1000)], [(0, 1050, 2000)]]
+
+
+def test_too_little_data_for_the_split_or_the_transient():
+    raw = narx_spec(n=5000, split={"train": [0, 4000], "test": [4000, 6000]})
+    raw["data"].pop("test")
+    with pytest.raises(DataError, match="needs 6000 samples but recording 'narx-system\\(seed=1\\)' has 5000"):
+        load_dataset(make_spec(raw))
+    with pytest.raises(DataError, match="no sample left after the transient of 2000"):
+        load_dataset(make_spec(narx_spec(n=5000, test_n=1500, transient=2000)))
+
+
+def test_noise_is_added_only_to_the_chosen_splits():
+    clean = load_dataset(make_spec(narx_spec(n=20000, split={"train": 0.5, "validation": 0.5})))
+    noisy = load_dataset(make_spec(narx_spec(n=20000, split={"train": 0.5, "validation": 0.5}, noise=0.4)))
+    train_diff = noisy.recordings[0].y[:10000] - clean.recordings[0].y[:10000]
+    assert abs(train_diff.std() / clean.recordings[0].y.std() - 0.4) < 0.01
+    np.testing.assert_array_equal(noisy.recordings[1].y, clean.recordings[1].y)  # the test recording stays clean
+    only_train = narx_spec(n=20000, split={"train": 0.5, "validation": 0.5}, noise=0.4)
+    only_train["data"]["noise"]["splits"] = ["train"]
+    ds = load_dataset(make_spec(only_train))
+    np.testing.assert_array_equal(ds.recordings[0].y[10000:], clean.recordings[0].y[10000:])
+
+
+def test_delay_lines_hold_the_first_value():
+    u = np.arange(1.0, 7.0)[:, None]
+    out = delayed_copies(u, [2, 4])
+    np.testing.assert_array_equal(out[:, 1], [1, 1, 1, 2, 3, 4])
+    np.testing.assert_array_equal(out[:, 2], [1, 1, 1, 1, 1, 2])
+
+
+def test_scaling_uses_training_statistics_and_hides_test_outputs():
+    raw = narx_spec(n=3000, split={"train": [0, 1000], "test": [1000, 2000], "validation": [2000, 3000]},
+                    transient=0, scaling="standard")
+    raw["data"].pop("test")
+    raw["data"]["delay_lines"] = [3]
+    ds = load_dataset(make_spec(raw))
+    pre = Preprocessor.fit(ds, [3], "standard")
+    y = ds.recordings[0].y
+    assert np.allclose(pre.output_offset, y[:1000].mean(axis=0)) and np.allclose(pre.output_scale, y[:1000].std(axis=0))
+    td = training_data(ds, pre)
+    assert td.input_names == ["u", "u@3"] and td.series[0].u.shape == (3000, 2)
+    assert np.isnan(td.series[0].y[1000:2000]).all() and np.isfinite(td.series[0].y[:1000]).all()
+    assert np.isfinite(td.targets("validation")).all()
+
+
+def test_several_recordings_keep_their_own_starts(tmp_path):
+    u1, y1 = narx(3000, 1)
+    u2, y2 = narx(2000, 2)
+    a = write_csv(tmp_path / "a.csv", {"u": u1, "y": y1})
+    b = write_csv(tmp_path / "b.csv", {"u": u2, "y": y2})
+    raw = {"data": {"path": ["a.csv", "b.csv"], "input": ["u"], "output": ["y"], "split": {"train": 0.5, "validation": 0.5},
+                    "transient": 100}, "model": {"family": "esn"}}
+    ds = load_dataset(make_spec(raw, tmp_path))
+    assert [r.name for r in ds.recordings] == ["a.csv", "b.csv"]
+    assert ds.scored("train") == [(0, 100, 1500), (1, 100, 1000)]
+    assert ds.scored("validation") == [(0, 1600, 3000), (1, 1100, 2000)]
+    raw["data"] = {**raw["data"], "path": "a.csv", "segments": [[0, 1000], [1000, 3000]]}
+    ds = load_dataset(make_spec(raw, tmp_path))
+    assert [r.n for r in ds.recordings] == [1000, 2000]

@@ -1,0 +1,161 @@
+"""The `esn` family: structure, determinism, persistence, and the thesis 5.3.2 reproductions."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import dynmodel
+from dynmodel import engine, store
+from dynmodel.data import load_dataset
+from dynmodel.spec import load_spec
+from dynmodel_plugins.esn.network import largest_singular_value, spectral_radius
+
+from conftest import ROOT, make_spec, narx, narx_spec, write_csv
+
+
+def _fit(raw, base=None):
+    return engine.fit(make_spec(raw, base))
+
+
+def _test_nmse(spec_path, seeds, **data_overrides):
+    out = []
+    for seed in seeds:
+        spec = load_spec(ROOT / spec_path)
+        spec.seed = seed
+        for key, value in data_overrides.items():
+            setattr(spec.data, key, value)
+        m = engine.fit(spec)
+        v = m.metrics["test"]["nmse"]
+        out.append(np.inf if v is None else v)
+    return np.array(out)
+
+
+def test_network_of_eq_5_28_keeps_its_matrix():
+    raw = narx_spec(n=2000, test_n=500, transient=100,
+                    weights={"C": [[0.34, 2.31], [-0.56, -1.93]], "b": [1, 1], "c0": [0, 0]})
+    for key in ("size", "scale"):
+        raw["model"]["params"].pop(key)
+    m = _fit(raw)
+    C = m.family.network_.C
+    assert abs(largest_singular_value(C) - 3.07) < 0.01 and abs(spectral_radius(C) - 0.79) < 0.01
+    np.testing.assert_array_equal(m.family.network_.B_in[:, 0], [1, 1])
+
+
+def test_random_networks_follow_the_requested_statistics():
+    m = _fit(narx_spec(size=400, n=3000, test_n=500, transient=100, connectivity=0.02, bias_connectivity=0.5))
+    net = m.family.network_
+    assert abs(largest_singular_value(net.C) - 0.95) < 1e-9
+    assert abs(net.C.nnz / 400**2 - 0.02) < 0.003
+    assert abs(np.mean(net.c0 != 0) - 0.5) < 0.08
+    assert abs(np.mean(net.B_in != 0) - 0.1) < 0.04
+
+
+def test_spectral_scaling_warns_that_reliability_is_not_guaranteed():
+    with pytest.warns(UserWarning, match="does not guarantee a reliable network"):
+        m = _fit(narx_spec(n=2000, test_n=500, transient=100, scale={"by": "spectral", "value": 0.95}))
+    assert abs(spectral_radius(m.family.network_.C) - 0.95) < 1e-9
+
+
+def test_same_seed_same_arrays_other_seed_other_network():
+    raw = narx_spec(mode="external", n=3000, test_n=1000, transient=200, cost="mse_inf", noise=0.3,
+                    split={"train": 0.8, "validation": 0.2})
+    a, b, c = _fit(raw), _fit(raw), _fit({**raw, "seed": 1})
+    arrays_a, arrays_b = a.family.to_arrays()[0], b.family.to_arrays()[0]
+    for key in arrays_a:
+        np.testing.assert_array_equal(arrays_a[key], arrays_b[key], err_msg=key)
+    assert a.metrics == b.metrics
+    assert not np.array_equal(a.family.network_.C.toarray(), c.family.network_.C.toarray())
+
+
+@pytest.mark.parametrize("mode", ["internal", "external"])
+def test_save_load_predict_reproduces_the_in_memory_prediction(tmp_path, mode):
+    m = _fit(narx_spec(mode=mode, n=3000, test_n=1000, transient=200, scaling="standard",
+                       split={"train": 0.7, "validation": 0.3}))
+    u, y = narx(1500, 99)
+    before = m.predict(u, y_tune=y[:m.warmup])
+    path = dynmodel.save(m, tmp_path / "m.h5")
+    loaded = dynmodel.load(path)
+    after = loaded.predict(u, y_tune=y[:loaded.warmup])
+    np.testing.assert_array_equal(before, after)
+    assert loaded.metrics == m.metrics and loaded.spec == m.spec
+    nmse = 100 * np.mean((after[200:, 0] - y[200:]) ** 2) / np.var(y[200:])
+    assert nmse < 5.0  # a real model, not a constant
+
+
+def test_external_prediction_asks_for_tune_in_outputs():
+    m = _fit(narx_spec(mode="external", n=2000, test_n=500, transient=200, tune_in=50))
+    with pytest.raises(ValueError, match="first 50 measured output samples"):
+        m.predict(np.zeros(300))
+
+
+def test_multi_input_multi_output_and_several_recordings(tmp_path):
+    """y1 follows the NARX system of u1, y2 a linear filter of u2; three separate recordings."""
+    paths = []
+    for k in range(3):
+        rng = np.random.default_rng(k)
+        u1, y1 = narx(2500, 10 + k)
+        u2 = rng.standard_normal(2500)
+        y2 = np.zeros(2500)
+        for t in range(1, 2500):
+            y2[t] = 0.6 * y2[t - 1] + 0.5 * u2[t] + 0.3 * u2[t - 1]
+        paths.append(write_csv(tmp_path / f"r{k}.csv", {"u1": u1, "u2": u2, "y1": y1, "y2": 100 + 20 * y2}).name)
+    raw = {"data": {"path": paths[:2], "input": ["u1", "u2"], "output": ["y1", "y2"], "split": {"train": 0.8, "validation": 0.2},
+                    "test": {"path": paths[2]}, "transient": 100},
+           "model": {"family": "esn", "params": {"size": 150}}}
+    m = _fit(raw, tmp_path)
+    test = m.metrics["test"]
+    assert set(test["per_output"]) == {"y1", "y2"}
+    assert test["per_output"]["y1"]["nmse"] < 15 and test["per_output"]["y2"]["nmse"] < 1  # a constant scores 100
+    assert m.metrics["train"]["samples"] == 2 * (2000 - 100)
+
+
+def test_delay_lines_give_memory_beyond_the_network(tmp_path):
+    """Output = input delayed by 40 samples: a 30-element network forgets that far back; a delay line does not."""
+    u = np.random.default_rng(3).standard_normal(6000)
+    y = np.concatenate([np.zeros(40), u[:-40]])
+    write_csv(tmp_path / "delay.csv", {"u": u, "y": y})
+    raw = {"data": {"path": "delay.csv", "input": ["u"], "output": ["y"], "transient": 100},
+           "model": {"family": "esn", "params": {"size": 30}}}
+    plain = _fit(raw, tmp_path)
+    raw["data"]["delay_lines"] = [40]
+    delayed = _fit(raw, tmp_path)
+    assert plain.metrics["test"]["nmse"] > 50
+    assert delayed.metrics["test"]["nmse"] < 1
+
+
+# ------------------------------------------------------------------------- thesis reproductions
+
+@pytest.mark.slow
+def test_thesis_5_3_2_internal_and_external_approach_over_20_networks():
+    internal = _test_nmse("specs/thesis-5.3.2-internal.yaml", range(20))
+    external = _test_nmse("specs/thesis-5.3.2-external.yaml", range(20))
+    print(f"\ninternal: mean {internal.mean():.4g} median {np.median(internal):.4g} std {internal.std():.3g}")
+    print(f"external: mean {external.mean():.4g} median {np.median(external):.4g} std {external.std():.3g}")
+    assert internal.mean() <= 1.3
+    assert external.mean() <= 0.003
+    assert np.all(external < internal)
+
+
+@pytest.mark.slow
+def test_refinement_on_noisy_training_data():
+    """External approach, noise on train+validation outputs, clean test (thesis figure 5.11)."""
+    from dynmodel.spec import NoiseSpec
+
+    seeds = range(8)
+    table = {}
+    for level in (0.0, 0.2, 0.5, 1.0):
+        noise = NoiseSpec(std=level)
+        table[level] = {}
+        for cost in ("mse1", "mse_inf"):
+            vals = []
+            for seed in seeds:
+                spec = load_spec(ROOT / "specs/thesis-5.3.2-noise.yaml")
+                spec.seed, spec.cost, spec.data.noise = seed, cost, noise
+                v = engine.fit(spec).metrics["test"]["nmse"]
+                vals.append(np.inf if v is None else v)
+            table[level][cost] = np.array(vals)
+        print(f"\nnoise {level}: mse1 mean {table[level]['mse1'].mean():.4g}, mse_inf mean {table[level]['mse_inf'].mean():.4g}")
+    assert table[1.0]["mse_inf"].mean() < 1.0
+    for level in (0.2, 0.5, 1.0):
+        assert table[level]["mse_inf"].mean() < table[level]["mse1"].mean()
+    assert table[0.0]["mse_inf"].mean() <= table[0.0]["mse1"].mean() * 1.02

@@ -1,0 +1,115 @@
+"""The YAML spec: the issue's examples validate, defaults resolve, mistakes get one clear line."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from dynmodel.errors import SpecError
+from dynmodel.spec import load_spec, parse_yaml, spec_json_schema, validate_spec
+
+from conftest import ROOT, narx_spec
+
+
+def test_issue_examples_validate_with_resolved_defaults():
+    file_spec = load_spec(ROOT / "specs/examples/file-example.yaml")
+    assert file_spec.cost == "mse_inf" and file_spec.seed == 3
+    assert file_spec.data.noise.std == 0.5 and file_spec.data.noise.splits == ["train", "validation"]
+    assert file_spec.model.params.mode == "external" and file_spec.model.params.scale.by == "singular"
+    assert file_spec.output_path() == (ROOT / "specs/examples/model.h5").resolve()
+    gen_spec = load_spec(ROOT / "specs/examples/generator-example.yaml")
+    assert gen_spec.data.split.test == (10000, 20000)
+    params = gen_spec.model.params
+    # defaults of the thesis 5.3.2 networks
+    assert (params.size, params.connectivity, params.input_connectivity, params.bias_connectivity) == (200, 0.01, 0.1, 0.8)
+    assert params.scale.by == "singular" and params.scale.value == 0.95
+    resolved = gen_spec.resolved()
+    assert resolved["model"]["params"]["connectivity"] == 0.01
+    assert resolved["output"].endswith("generator-example.h5")
+    assert validate_spec(json.loads(json.dumps(resolved))).resolved() == resolved  # resolved spec is a fixed point
+
+
+def test_every_bundled_spec_validates():
+    for path in sorted((ROOT / "specs").rglob("*.yaml")):
+        load_spec(path)
+
+
+def _error(raw) -> str:
+    with pytest.raises(SpecError) as info:
+        validate_spec(raw, "spec.yaml")
+    line = str(info.value)
+    assert "\n" not in line
+    return line
+
+
+def test_unknown_keys_are_named_with_a_suggestion():
+    raw = narx_spec()
+    raw["data"]["splt"] = raw["data"].pop("split")
+    line = _error(raw)
+    assert "unknown key 'splt'" in line and "did you mean 'split'" in line and "spec.yaml: data" in line
+    raw = narx_spec(sise=10)
+    line = _error(raw)
+    assert "unknown key 'sise'" in line and "model.params" in line and "'size'" in line
+    raw = narx_spec()
+    raw["modle"] = {}
+    assert "did you mean 'model'" in _error(raw)
+
+
+def test_unknown_family_and_generator_list_the_installed_ones():
+    raw = narx_spec()
+    raw["model"]["family"] = "esm"
+    line = _error(raw)
+    assert "unknown family 'esm'" in line and "did you mean 'esn'" in line
+    raw = narx_spec()
+    raw["data"]["generator"] = "lorenz"
+    line = _error(raw)
+    assert "unknown generator 'lorenz'" in line and "narx-system" in line and "rossler-lorenz" in line
+
+
+def test_wrong_values_say_where_and_what():
+    raw = narx_spec()
+    raw["model"]["params"]["size"] = "many"
+    line = _error(raw)
+    assert "model.params.size" in line and "integer" in line and '"many"' in line
+    raw = narx_spec(split={"train": 0.8, "validation": 0.4})
+    assert "add up to 1.2" in _error(raw)
+    raw = narx_spec(split={"train": [0, 5000], "test": [4000, 9000]})
+    assert "overlap" in _error(raw)
+    raw = narx_spec(cost="mse2")
+    assert "cost" in _error(raw)
+    raw = narx_spec()
+    raw["data"]["params"] = {"a0": 2.0}  # |a0| of the linear generator is fine here, but b0 must be a number
+    raw["data"]["params"]["b0"] = "x"
+    assert "data.params.b0" in _error(raw)
+
+
+def test_relaxation_and_explicit_weights_are_checked():
+    raw = narx_spec(relaxation=1.5)
+    assert "relaxation must lie in (-1, 1)" in _error(raw)
+    raw = narx_spec(weights={"C": [[0.1, 0.2], [0.3]]})
+    assert "C must be square" in _error(raw)
+    raw = narx_spec(weights={"C": [[0.34, 2.31], [-0.56, -1.93]]})
+    for key in ("size", "scale"):
+        raw["model"]["params"].pop(key)
+    spec = validate_spec(raw)
+    assert spec.model.params.size == 2 and spec.model.params.scale.by == "none"
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("name: x\ndata:\n  path: a.csv\n   input: [u]\n", "spec.yaml:4:"),
+    ("name: x\ndata: {path: a.csv\n", "malformed YAML"),
+    ("name: x\nname: y\n", "duplicate key 'name'"),
+    ("", "the spec is empty"),
+    ("- a\n- b\n", "must be a mapping"),
+])
+def test_yaml_problems(text, expected):
+    with pytest.raises(SpecError) as info:
+        parse_yaml(text, "spec.yaml")
+    assert expected in str(info.value)
+
+
+def test_json_schema_shows_every_family_and_generator_parameter():
+    schema = json.dumps(spec_json_schema())
+    for needle in ["input_connectivity", "relaxation_gain", "tune_in", "narx-system", "rossler-cross",
+                   "horizon", "integration_step", "delay_lines", "transient"]:
+        assert needle in schema, needle
