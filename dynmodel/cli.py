@@ -23,7 +23,7 @@ from .errors import EXIT_CHECK_FAILED, EXIT_INTERNAL, DynmodelError, FreeRunDive
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Black-box models of driven dynamical systems from measured input/output data.")
-out = Console(soft_wrap=True)
+out = Console(soft_wrap=True, highlight=False)
 err = Console(stderr=True, soft_wrap=True, highlight=False)
 _state = {"debug": False}
 
@@ -140,6 +140,9 @@ def fit(spec: Path = typer.Argument(..., help="YAML spec"),
     recs = ", ".join(dict.fromkeys(r.name.split(":")[-1] for r in ds.recordings))
     out.print(f"[bold]{s.name}[/]: {s.model.family} fitted with cost {s.cost} on {recs} in {elapsed:.1f} s")
     out.print(metrics_table(model.metrics))
+    if s.data.noise is not None and s.data.noise.std > 0:
+        out.print(f"note: noise of std {s.data.noise.std:g} x the output std was added to the "
+                  f"{', '.join(s.data.noise.splits)} outputs; those splits are scored against the noisy outputs")
     out.print(f"model written to {Path(target).resolve()}")
     if json_path:
         _write_json(json_path, {"metrics": model.metrics, "model": str(Path(target).resolve())})
@@ -164,7 +167,10 @@ def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
     t = np.arange(r.n) * ds.sampling_time
     spans = [(split, a * ds.sampling_time, b * ds.sampling_time)
              for split in ds.splits() for rr, a, b in ds.ranges[split] if rr == rec]
-    measured_vs_simulated(path, t, r.y, runs[rec].y, model.output_names, f"{name}: {r.name}", spans)
+    scored = [a for split in ("test", "validation", "train") for rr, a, _ in ds.scored(split, model.warmup) if rr == rec]
+    start = scored[0] if scored else 0
+    measured_vs_simulated(path, t, r.y, runs[rec].y, model.output_names, f"{name}: {r.name}", spans,
+                          zoom=(start, min(r.n, start + 400)), tune_in=model.warmup)
 
 
 # ------------------------------------------------------------------------------ validate
@@ -257,7 +263,8 @@ def predict(model_path: Path = typer.Argument(..., metavar="MODEL", help="model 
             y_true = np.column_stack([yc[n] for n in model.output_names])
         except DataError:
             y_true = np.full_like(run.y, np.nan)
-        measured_vs_simulated(plot, t, y_true, run.y, model.output_names, f"{model_path.name} on {input_path.name}")
+        measured_vs_simulated(plot, t, y_true, run.y, model.output_names, f"{model_path.name} on {input_path.name}",
+                              tune_in=model.warmup)
     if run.diverged_at is not None:
         raise FreeRunDiverged(f"the free run diverged at sample {run.diverged_at} (t = {run.diverged_at * model.sampling_time:.6g}); "
                               "later predictions are NaN", str(input_path),

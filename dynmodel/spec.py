@@ -306,8 +306,10 @@ def _loc_without_tags(loc: tuple) -> tuple:
 
 
 def format_validation_error(err: ValidationError, source: str) -> SpecError:
-    """Turn the first pydantic error into one line: where, what, how to fix."""
-    e = err.errors()[0]
+    """Turn the first pydantic error into one line: where, what, how to fix (unknown keys first,
+    since a misspelt key usually also causes the 'missing' error of the key it meant)."""
+    errors = err.errors()
+    e = next((x for x in errors if x["type"] == "extra_forbidden"), errors[0])
     loc = tuple(e["loc"])
     where = f"{source}: {_dotted(loc)}" if loc else source
     kind = e["type"]

@@ -8,6 +8,7 @@ on free-running error by the predictor-corrector algorithm of section 5.3.2.
 """
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -110,6 +111,9 @@ class EchoStateNetwork(Family):
         self.refinement_: list[dict[str, float]] = []
         if cost == "mse_inf" and self.external:
             self._refine(data, progress)
+        elif cost == "mse_inf":
+            warnings.warn("in the internal mode the free run equals the one-step prediction (no output feedback, "
+                          "thesis 5.3.2), so cost mse_inf fits the same readout as mse1", stacklevel=2)
         return self
 
     def _free_runs(self, data: TrainingData, mix: float, store: bool):
