@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg
 
 _CHUNK_ELEMENTS = 20_000_000  # TSQR chunk size (160 MB of float64)
 
@@ -195,6 +196,74 @@ def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ..
                    np.array(val_err) if val_err else None, best_m)
 
 
+def fos_select_qr(R: np.ndarray, z: np.ndarray, yy: float, *, forced: tuple[int, ...] = (),
+                  max_terms: int | None = None, threshold: float | None = None,
+                  Pv: np.ndarray | None = None, yv: np.ndarray | None = None, patience: int = 1,
+                  tol: float = 1e-24) -> FosPath:
+    """FOS with the same selection rule as :func:`fos_select`, numerically stable.
+
+    The pool P (N, K) enters through its QR reduction: the columns of R (K, K) are the pool
+    vectors in an orthonormal basis of its range and z = Q^T y, so every inner product FOS needs
+    is preserved. On these short vectors the orthogonalization is done explicitly by modified
+    Gram-Schmidt, which keeps its accuracy when the candidates are nearly collinear (states of
+    random networks, high-degree monomials), where the covariance recursion loses it: the Gram
+    matrix squares the condition number. Cost per selected term: O(K^2), as the recursion.
+    """
+    K, P = R.shape
+    limit = P if max_terms is None else min(max_terms, P)
+    V = np.array(R, dtype=np.float64, copy=True)  # candidates, orthogonalized against the chosen terms
+    r = np.array(z, dtype=np.float64, copy=True)  # part of y not explained yet
+    norm0 = np.einsum("ij,ij->j", R, R)
+    available = norm0 > 0
+    T = np.zeros((limit, P))  # T[j, i] = <q_j, g_i>: the triangular factor of the chosen columns
+    beta = np.zeros(limit)
+    order: list[int] = []
+    coef_path: list[np.ndarray] = []
+    Q = np.zeros(limit)
+    val_err: list[float] = []
+    best_m, best_val, since_best = 0, np.inf, 0
+    for m in range(limit):
+        d = np.einsum("ij,ij->j", V, V)
+        valid = available & (d > tol * np.maximum(norm0, 1e-300)) & (d > 0)
+        if not valid.any():
+            break
+        if m < len(forced):
+            i = forced[m]
+            if not valid[i]:
+                break
+        else:
+            proj = V.T @ r
+            score = np.where(valid, proj * proj / np.where(valid, d, 1.0), -np.inf)
+            i = int(np.argmax(score))
+            if threshold is not None and score[i] < threshold * yy:
+                break
+        q = V[:, i] / np.sqrt(d[i])
+        c = q @ V  # MGS: remove the new direction from every candidate
+        T[m] = c
+        V -= np.outer(q, c)
+        available[i] = False
+        beta[m] = q @ r
+        r -= beta[m] * q
+        Q[m] = beta[m] ** 2
+        order.append(i)
+        U = T[:m + 1][:, order]  # upper triangular: the chosen columns = Q_sel U
+        coef = scipy.linalg.solve_triangular(U, beta[:m + 1])
+        coef_path.append(coef)
+        if Pv is not None and yv is not None:
+            err = float(np.mean((yv - Pv[:, order] @ coef) ** 2))
+            val_err.append(err)
+            if err < best_val * (1 - 1e-12) or m < len(forced):
+                best_val, best_m, since_best = err, m + 1, 0
+            else:
+                since_best += 1
+                if since_best >= patience:
+                    break
+        else:
+            best_m = m + 1
+    return FosPath(np.array(order, dtype=np.int64), coef_path, Q[:len(order)],
+                   np.array(val_err) if val_err else None, best_m)
+
+
 def _solve_unit_upper(U: np.ndarray, b: np.ndarray) -> np.ndarray:
     x = b.copy()
     for k in range(len(b) - 1, -1, -1):
@@ -204,11 +273,14 @@ def _solve_unit_upper(U: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def fos(F: np.ndarray, Y: np.ndarray, *, Fv: np.ndarray | None = None, Yv: np.ndarray | None = None,
         max_terms: int | None = None, threshold: float | None = None, patience: int = 1,
-        weights: str = "lstsq", fit_intercept: bool = True) -> LinearFit:
+        weights: str = "lstsq", fit_intercept: bool = True, method: str = "qr") -> LinearFit:
     """FOS selection per output column, then weights for the kept terms.
 
+    ``method='qr'`` (default) runs the search on the QR reduction of the pool
+    (:func:`fos_select_qr`, stable for nearly collinear pools); ``'covariance'`` runs
+    Korenberg's recursion of appendix A.2.2 on the Gram matrix (:func:`fos_select`).
     ``weights='lstsq'`` re-estimates the kept terms by least squares on the data (most
-    accurate); ``'recursion'`` uses the FOS coefficients of eq. A.14 / A.15 directly.
+    accurate); ``'recursion'`` uses the FOS coefficients (eq. A.14 / A.15) directly.
     """
     Y = _as2d(Y)
     N, K = F.shape
@@ -217,17 +289,25 @@ def fos(F: np.ndarray, Y: np.ndarray, *, Fv: np.ndarray | None = None, Yv: np.nd
     if Fv is not None:
         pool_v = np.hstack([np.ones((Fv.shape[0], 1)), Fv]) if fit_intercept else Fv
         Yv = _as2d(Yv)
-    G = pool.T @ pool
     forced = (0,) if fit_intercept else ()
+    if method == "qr":
+        R, QtY = qr_reduce(pool, Y)
+    elif method == "covariance":
+        G = pool.T @ pool
+    else:
+        raise ValueError(f"unknown FOS method '{method}'; use 'qr' or 'covariance'")
     coef = np.zeros((K, Y.shape[1]))
     intercept = np.zeros(Y.shape[1])
     selected: list[np.ndarray] = []
     sizes = []
     for q in range(Y.shape[1]):
         y = Y[:, q]
-        path = fos_select(G, pool.T @ y, float(y @ y), forced=forced, max_terms=max_terms,
-                          threshold=threshold, Pv=pool_v, yv=None if Yv is None else Yv[:, q],
-                          patience=patience)
+        common = dict(forced=forced, max_terms=max_terms, threshold=threshold, Pv=pool_v,
+                      yv=None if Yv is None else Yv[:, q], patience=patience)
+        if method == "qr":
+            path = fos_select_qr(R, QtY[:, q], float(y @ y), **common)
+        else:
+            path = fos_select(G, pool.T @ y, float(y @ y), **common)
         kept = path.order[:path.best]
         if weights == "recursion":
             w = path.coef_path[path.best - 1] if path.best else np.zeros(0)

@@ -35,7 +35,7 @@ def _post(a, g, x, z, out):
         out[i] = a[i] * x[i] + g[i] * tanh1(z[i])
 
 
-@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
 def drive(indptr, indices, data, B, c0, a, g, V, x0):
     """States (n, M) of the network driven by V (n, n_drive) from state x0 (internal mode,
     or teacher forcing when V holds the measured past outputs)."""
@@ -51,7 +51,28 @@ def drive(indptr, indices, data, B, c0, a, g, V, x0):
     return X
 
 
-@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
+def drive_features(indptr, indices, data, B, c0, a, g, V, x0, direct, F):
+    """Like :func:`drive`, but writes readout features into the preallocated F (n, K):
+    ``[x_t, v_t (when direct), 1]``. Allocation-free: the hot loop of structure optimization."""
+    n = V.shape[0]
+    m = c0.shape[0]
+    nv = V.shape[1]
+    z = np.empty(m)
+    prev = x0.copy()
+    last = F.shape[1] - 1
+    for t in range(n):
+        _pre(indptr, indices, data, B, c0, prev, V[t], z)
+        row = F[t]
+        _post(a, g, prev, z, row[:m])
+        if direct:
+            for j in range(nv):
+                row[m + j] = V[t, j]
+        row[last] = 1.0
+        prev = row[:m]
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
 def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0,
              store_states):
     """External-mode run: the network is fed its own past output.
@@ -116,7 +137,7 @@ def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y
     return X, yhat, fb, diverged
 
 
-@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
 def step_batch(indptr, indices, data, B, c0, a, g, X, V, out):
     """One step for many replicas at once: out[r] = update(X[r], V[r])."""
     m = c0.shape[0]
@@ -124,3 +145,4 @@ def step_batch(indptr, indices, data, B, c0, a, g, X, V, out):
     for r in range(X.shape[0]):
         _pre(indptr, indices, data, B, c0, X[r], V[r], z)
         _post(a, g, X[r], z, out[r])
+

@@ -91,13 +91,25 @@ class EchoStateNetwork(Family):
     def fit(self, data: TrainingData, cost: str = "mse1", rng: np.random.Generator | None = None,
             progress: Progress = no_progress) -> "EchoStateNetwork":
         rng = rng if rng is not None else np.random.default_rng(0)
+        self._prepare(data)
+        self.network_ = build_network(self.params, data.n_inputs, data.n_outputs, rng)
+        return self._fit_readout(data, cost, progress)
+
+    def _prepare(self, data: TrainingData) -> None:
         self.n_inputs_ = data.n_inputs
         self.n_outputs_ = data.n_outputs
-        self.network_ = build_network(self.params, data.n_inputs, data.n_outputs, rng)
-        self.y_rest_ = np.zeros(data.n_outputs) if not data.has("train") else np.nanmean(data.targets("train"), axis=0)
+        self.y_rest_ = np.nanmean(data.targets("train"), axis=0)
         self._bounds = data.output_bounds()
+
+    def training_drives(self, data: TrainingData) -> list[np.ndarray]:
+        """Per series: the drive in training (input, plus the measured past output in external mode)."""
+        return [np.ascontiguousarray(self._drive(s.u, _teacher_feedback(s.y) if self.external else None))
+                for s in data.series]
+
+    def _fit_readout(self, data: TrainingData, cost: str, progress: Progress) -> "EchoStateNetwork":
+        """Readout of ``network_`` on the training split; refinement for cost mse_inf (external mode)."""
         progress("states", None, f"driving {self.network_.size} elements")
-        drives = [self._drive(s.u, _teacher_feedback(s.y) if self.external else None) for s in data.series]
+        drives = self.training_drives(data)
         states = [self._states(v) for v in drives]
         feats = [self._features(X, v) for X, v in zip(states, drives)]
         F, Y = data.stack("train", feats), data.targets("train")

@@ -48,7 +48,8 @@ class Readout(FamilyParams):
     direct: bool = Field(True, description="also offer the network's drive (inputs, fed-back outputs) to the readout "
                                            "(direct input-output links, thesis eq. 5.6)")
     max_terms: Optional[int] = Field(None, gt=0, description="fos: most states kept (default: no limit)")
-    patience: int = Field(10, gt=0, description="fos: stop after this many terms without a lower validation error")
+    patience: int = Field(50, gt=0, description="fos: stop after this many terms without a lower validation error "
+                                                "(1: at the first rise, thesis A.3)")
     threshold: Optional[float] = Field(None, gt=0, description="fos: stop when a term reduces the error by less than this fraction")
     rcond: Optional[float] = Field(None, gt=0, description="lstsq: relative singular-value cutoff (default eps * max(N, K))")
     ridge: Union[float, Literal["auto"]] = Field("auto", description="ridge factor, or auto: chosen on the validation split")

@@ -1,0 +1,99 @@
+"""A small simulated-annealing optimizer shared by the families that adapt their structure
+(thesis 5.3.4, 4.4.2).
+
+Exponential cooling ``T <- a T`` from ``T0`` to ``T_end`` over the step budget. Each step picks a
+move from a weighted registry and applies it to a copy of the current state; the move receives
+``scale = T / T0`` so that its step variance is ``(T / T0)^2``. A better candidate is always
+accepted; a worse one with probability ``exp(delta / T)``, where ``delta`` is the relative change
+of the objective ``(old - new) / old`` (eq. 5.57, negative for a worse candidate). The best state
+seen is kept; Ctrl-C stops the run and returns it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Generic, TypeVar
+
+import numpy as np
+
+S = TypeVar("S")
+
+#: a move: (state, rng, scale) -> new state (or None when the move does not apply to this state)
+Move = Callable[[S, np.random.Generator, float], "S | None"]
+
+
+@dataclass
+class Schedule:
+    steps: int = 400
+    t0: float = 0.1
+    t_end: float = 1e-4
+
+    @property
+    def cooling(self) -> float:
+        """Factor a of T <- a T that reaches t_end after ``steps`` steps."""
+        return (self.t_end / self.t0) ** (1.0 / max(self.steps - 1, 1))
+
+
+@dataclass
+class AnnealResult(Generic[S]):
+    best: S
+    best_score: float
+    history: list[dict[str, Any]] = field(default_factory=list)  # one entry per step
+    interrupted: bool = False
+
+    @property
+    def accepted(self) -> int:
+        return sum(1 for h in self.history if h["accepted"])
+
+
+def relative_improvement(old: float, new: float) -> float:
+    """delta of eq. 5.57: (old - new) / old; -inf for a non-finite candidate."""
+    if not math.isfinite(new):
+        return -math.inf
+    if old <= 0 or not math.isfinite(old):
+        return math.inf if new < old else -math.inf
+    return (old - new) / old
+
+
+def anneal(state: S, score: float, objective: Callable[[S], float], moves: list[tuple[str, float, Move]],
+           schedule: Schedule, rng: np.random.Generator,
+           on_step: Callable[[int, float, float, float, dict[str, Any]], None] | None = None,
+           stop: Callable[[int, float], bool] | None = None) -> AnnealResult[S]:
+    """Anneal ``state`` (objective ``score``) with ``moves`` (name, weight, move).
+
+    ``on_step(step, temperature, current_score, best_score, info)`` reports progress;
+    ``stop(step, best_score)`` may end the run early (e.g. no improvement for a while).
+    """
+    names = [m[0] for m in moves]
+    weights = np.array([m[1] for m in moves], dtype=float)
+    weights = weights / weights.sum()
+    best, best_score = state, score
+    current, current_score = state, score
+    temperature = schedule.t0
+    a = schedule.cooling
+    history: list[dict[str, Any]] = []
+    interrupted = False
+    try:
+        for step in range(schedule.steps):
+            k = int(rng.choice(len(moves), p=weights))
+            candidate = moves[k][2](current, rng, temperature / schedule.t0)
+            accepted = False
+            new_score = math.nan
+            if candidate is not None:
+                new_score = objective(candidate)
+                delta = relative_improvement(current_score, new_score)
+                if delta >= 0 or (math.isfinite(delta) and rng.random() < math.exp(delta / temperature)):
+                    current, current_score, accepted = candidate, new_score, True
+                    if new_score < best_score:
+                        best, best_score = candidate, new_score
+            info = {"step": step, "move": names[k], "temperature": temperature, "score": new_score,
+                    "accepted": accepted, "best": best_score}
+            history.append(info)
+            if on_step is not None:
+                on_step(step, temperature, current_score, best_score, info)
+            if stop is not None and stop(step, best_score):
+                break
+            temperature *= a
+    except KeyboardInterrupt:
+        interrupted = True
+    return AnnealResult(best, best_score, history, interrupted)

@@ -1,0 +1,144 @@
+"""Recurrent networks whose structure is adapted to the data by simulated annealing
+(thesis 5.3.4; friction models of 6.2.3, 6.3.2 and 6.4.5).
+
+Starting from a sparse random network, structure changes (add, cut, rewire a connection; change a
+connection, input weight, bias or relaxation) are accepted by the annealing rule of eq. 5.57 on
+the free-running validation NMSE, the readout being least squares on the training split for
+every candidate. With ``grow: true`` elements are added whenever the validation NMSE stops
+improving, until that no longer helps (6.4.5). Restarts run in parallel threads; the best network
+on validation is kept. The fitted network is an ordinary tanh network, so simulation, one-step
+prediction, persistence and the reliability hooks are those of the `esn` family.
+"""
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from dynmodel.anneal import Schedule, anneal
+from dynmodel.data.training import TrainingData
+from dynmodel.family import Progress, no_progress
+from dynmodel_plugins.esn.model import EchoStateNetwork
+from dynmodel_plugins.esn.network import Network, build_network
+from dynmodel_plugins.esn.params import EsnParams, Scale
+
+from .params import AnnealedRnnParams
+from .search import Evaluator, NetState, grow, make_moves
+
+
+class AnnealedRnn(EchoStateNetwork):
+    name = "annealed-rnn"
+    description = "small recurrent network whose structure is optimized by simulated annealing (thesis 5.3.4, 6.4.5)"
+    Params = AnnealedRnnParams
+
+    params: AnnealedRnnParams  # type: ignore[assignment]
+
+    def _initial_state(self, data: TrainingData, rng: np.random.Generator) -> NetState:
+        p = self.params
+        esn = EsnParams(size=p.size, mode=p.mode, connectivity=p.connectivity, input_connectivity=p.input_connectivity,
+                        bias_connectivity=p.bias_connectivity, input_scale=p.input_scale, bias_scale=p.bias_scale,
+                        feedback_scale=p.feedback_scale, scale=Scale(by="singular", value=p.initial_singular),
+                        relaxation=p.relaxation)
+        net = build_network(esn, data.n_inputs, data.n_outputs, rng)
+        return NetState(net.C.toarray(), net.B_in, net.B_back, net.c0, net.a)
+
+    def _search(self, data: TrainingData, drives: list[np.ndarray], rng: np.random.Generator,
+                report, halt: threading.Event) -> tuple[NetState, float, list[dict[str, Any]], bool]:
+        """One annealing run, with growth stages when asked."""
+        p = self.params
+        evaluator = Evaluator(data, p, drives)
+        moves = make_moves(p)
+        state = self._initial_state(data, rng)
+        score = evaluator.score(state)
+        best_state, best_score = state, score
+        stages: list[dict[str, Any]] = []
+        interrupted = False
+        while True:
+            since = {"step": 0, "best": score}
+
+            def stop(step: int, best: float) -> bool:
+                if best < since["best"]:
+                    since.update(step=step, best=best)
+                return halt.is_set() or (p.grow and step - since["step"] >= p.patience)
+
+            result = anneal(state, score, evaluator.score, moves, Schedule(p.steps, p.t0, p.t_end), rng,
+                            on_step=lambda step, T, cur, best, info: report(state.size, step, T, best), stop=stop)
+            stages.append({"size": int(state.size), "steps": len(result.history), "accepted": result.accepted,
+                           "validation_nmse": 100 * result.best_score})
+            interrupted = result.interrupted or halt.is_set()
+            improved = result.best_score < best_score
+            if improved:
+                best_state, best_score = result.best, result.best_score
+            if interrupted or not p.grow or (len(stages) > 1 and not improved):
+                break
+            if best_state.size + p.grow_by > p.max_size:
+                break
+            state = grow(best_state, p.grow_by, p, rng)
+            score = evaluator.score(state)
+        return best_state, best_score, stages, interrupted
+
+    def fit(self, data: TrainingData, cost: str = "mse1", rng: np.random.Generator | None = None,
+            progress: Progress = no_progress) -> "AnnealedRnn":
+        rng = rng if rng is not None else np.random.default_rng(0)
+        p = self.params
+        self._prepare(data)
+        drives = self.training_drives(data)
+        lock = threading.Lock()
+
+        def reporter(k: int):
+            def report(size: int, step: int, temperature: float, best: float) -> None:
+                if step % 10 == 0 or step == p.steps - 1:
+                    with lock:
+                        progress("anneal", (step + 1) / max(p.steps, 1),
+                                 f"run {k + 1}/{p.restarts}, {size} elements, T = {temperature:.3g}, "
+                                 f"best validation NMSE {100 * best:.4g} %")
+            return report
+
+        seeds = rng.spawn(p.restarts)
+        workers = min(p.restarts, p.workers or os.cpu_count() or 1)
+        halt = threading.Event()  # Ctrl-C: every run stops and returns its best network so far
+        if workers > 1:
+            with ThreadPoolExecutor(workers) as pool:
+                futures = [pool.submit(self._search, data, drives, seeds[k], reporter(k), halt) for k in range(p.restarts)]
+                try:
+                    runs = [f.result() for f in futures]
+                except KeyboardInterrupt:
+                    halt.set()
+                    runs = [f.result() for f in futures]
+        else:
+            runs = [self._search(data, drives, seeds[k], reporter(k), halt) for k in range(p.restarts)]
+        k_best = int(np.argmin([r[1] for r in runs]))
+        best, score, stages, _ = runs[k_best]
+        self.search_ = {"restarts": [{"validation_nmse": 100 * r[1], "stages": r[2]} for r in runs], "best_run": k_best,
+                        "interrupted": any(r[3] for r in runs)}
+        g = 1.0 - np.abs(best.a) if p.relaxation_gain else np.ones_like(best.a)
+        C = sp.csr_matrix(best.C)
+        C.sort_indices()
+        self.network_ = Network(C, best.B_in, best.B_back, best.c0, best.a, g)
+        return self._fit_readout(data, cost, progress)
+
+    def to_arrays(self):
+        arrays, attrs = super().to_arrays()
+        attrs["search"] = getattr(self, "search_", None)
+        return arrays, attrs
+
+    @classmethod
+    def from_arrays(cls, params, arrays, attrs):
+        self = super().from_arrays(params, arrays, attrs)
+        self.search_ = attrs.get("search")
+        return self
+
+    def summary(self) -> dict[str, Any]:
+        info = super().summary()
+        search = getattr(self, "search_", None)
+        if search:
+            run = search["restarts"][search["best_run"]]
+            info["annealing"] = (f"{len(search['restarts'])} run(s), best: validation NMSE "
+                                 f"{run['validation_nmse']:.4g} %, stages {[s['size'] for s in run['stages']]}")
+            if search.get("interrupted"):
+                info["annealing"] += " (interrupted: best network so far)"
+        return info
