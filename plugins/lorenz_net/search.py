@@ -1,0 +1,191 @@
+"""Annealing of Lorenz-network parameters and couplings (thesis 4.4.2).
+
+The objective is the validation NMSE of the network whose linear readout of all 3M states plus an
+offset (eq. 4.55) is fitted by least squares on the training rows. The evaluator keeps the state
+trajectories and the Gram matrix of the last evaluated network and recomputes only the elements a
+move touched and those downstream of them (in the parallel strategy: one element of M).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from dynmodel.data.training import TrainingData
+
+from .elements import descendants, simulate_network
+from .params import LorenzNetParams
+
+WEIGHT_LOW, WEIGHT_HIGH = 0.5, 1.5  # couplings from [-1.5, -0.5] U [0.5, 1.5] (thesis 4.4.2)
+
+
+@dataclass(frozen=True)
+class LorenzState:
+    params: np.ndarray  # (M, 4): sigma, r, b, alpha
+    C: np.ndarray  # (M, M) strictly lower triangular
+    B: np.ndarray  # (M, n_inputs)
+    layer: np.ndarray  # (M,) layer index of each element
+
+
+def _coupling(rng: np.random.Generator) -> float:
+    return float(rng.choice([-1.0, 1.0]) * rng.uniform(WEIGHT_LOW, WEIGHT_HIGH))
+
+
+def initial_state(p: LorenzNetParams, n_inputs: int, rng: np.random.Generator) -> LorenzState:
+    m = p.size
+    params = np.column_stack([rng.uniform(*p.sigma_range, m), rng.uniform(*p.r_range, m),
+                              rng.uniform(*p.b_range, m), rng.uniform(*p.alpha_range, m)])
+    params = np.maximum(params, 1e-3)  # sigma, r, b, alpha > 0 keep every element reliable
+    C = np.zeros((m, m))
+    if p.strategy == "parallel":
+        layer = np.zeros(m, dtype=np.int64)
+    else:
+        layer = np.minimum(np.arange(m) * p.layers // m, p.layers - 1)
+        for i in range(m):  # one link to a previous layer for every element after the first layer
+            if layer[i] > 0:
+                C[i, rng.choice(np.flatnonzero(layer < layer[i]))] = _coupling(rng)
+        free = [(i, j) for i in range(m) for j in range(i) if C[i, j] == 0]
+        for k in rng.choice(len(free), size=min(p.extra_links, len(free)), replace=False):
+            C[free[k]] = _coupling(rng)
+    B = np.zeros((m, n_inputs))
+    first = layer == 0
+    B[first] = 1.0 if n_inputs == 1 else np.array([[_coupling(rng) for _ in range(n_inputs)] for _ in range(int(first.sum()))])
+    return LorenzState(params, C, B, layer)
+
+
+def make_moves(p: LorenzNetParams):
+    step = p.step
+
+    def parameter(s: LorenzState, rng, scale):
+        params = s.params.copy()
+        i, k = int(rng.integers(params.shape[0])), int(rng.integers(4))
+        params[i, k] *= float(np.exp(step * scale * rng.standard_normal()))
+        return replace(s, params=params)
+
+    def add(s: LorenzState, rng, scale):
+        m = s.C.shape[0]
+        free = [(i, j) for i in range(m) for j in range(i) if s.C[i, j] == 0]
+        if not free:
+            return None
+        C = s.C.copy()
+        C[free[int(rng.integers(len(free)))]] = _coupling(rng)
+        return replace(s, C=C)
+
+    def cut(s: LorenzState, rng, scale):
+        # keep at least one input for every element outside the first layer
+        rows, cols = np.nonzero(s.C)
+        ok = [k for k in range(len(rows)) if np.count_nonzero(s.C[rows[k]]) > 1]
+        if not ok:
+            return None
+        k = ok[int(rng.integers(len(ok)))]
+        C = s.C.copy()
+        C[rows[k], cols[k]] = 0.0
+        return replace(s, C=C)
+
+    def rescale(s: LorenzState, rng, scale):
+        rows, cols = np.nonzero(s.C)
+        if rows.size == 0:
+            return None
+        k = int(rng.integers(rows.size))
+        C = s.C.copy()
+        C[rows[k], cols[k]] *= float(np.exp(step * scale * rng.standard_normal()))
+        return replace(s, C=C)
+
+    ranges = [p.sigma_range, p.r_range, p.b_range, p.alpha_range]
+
+    def redraw(s: LorenzState, rng, scale):
+        params = s.params.copy()
+        i, k = int(rng.integers(params.shape[0])), int(rng.integers(4))
+        params[i, k] = max(rng.uniform(*ranges[k]), 1e-3)
+        return replace(s, params=params)
+
+    element_moves = [("parameter", 0.5, parameter), ("redraw", 0.5, redraw)]
+    if p.strategy == "parallel":
+        return element_moves
+    share = p.coupling_share
+    return [(n, w * (1.0 - share), f) for n, w, f in element_moves] + [
+        ("add", share / 3, add), ("cut", share / 3, cut), ("rescale", share / 3, rescale)]
+
+
+class Evaluator:
+    """Validation NMSE with cached trajectories: only touched elements and their descendants are
+    integrated again, and only their columns of the Gram matrix are refreshed."""
+
+    def __init__(self, data: TrainingData, p: LorenzNetParams, dt: float):
+        if not data.has("validation"):
+            raise ValueError("lorenz-net optimizes its elements on a validation split; give data.split a validation "
+                             "part (e.g. {train: 0.67, validation: 0.33})")
+        self.data, self.p, self.dt = data, p, dt
+        self.Yv = data.targets("validation")
+        self.var_v = np.maximum(np.var(self.Yv, axis=0), 1e-300)
+        self.cached: LorenzState | None = None
+        self.states: list[np.ndarray] = []  # per series (n, M, 3)
+        self.finite = np.ones((0, 0), dtype=bool)  # per series and element: trajectory finite
+        self.G: np.ndarray | None = None
+        self.c: np.ndarray | None = None
+        self.evaluations = 0
+        self.element_integrations = 0
+
+    def _changed(self, s: LorenzState) -> list[int]:
+        old = self.cached
+        if old is None or old.params.shape != s.params.shape:
+            return list(range(s.params.shape[0]))
+        rows = np.flatnonzero(np.any(old.params != s.params, axis=1) | np.any(old.C != s.C, axis=1)
+                              | np.any(old.B != s.B, axis=1))
+        return descendants(s.C, set(int(i) for i in rows))
+
+    def features(self, s: LorenzState) -> list[np.ndarray]:
+        """Per series: the (n, 3M) states of network ``s`` (updated in place from the cache)."""
+        todo = self._changed(s)
+        full = self.cached is None or self.cached.params.shape != s.params.shape
+        if full:
+            self.states = []
+            self.finite = np.ones((len(self.data.series), s.params.shape[0]), dtype=bool)
+        for k, series in enumerate(self.data.series):
+            if full:
+                X, _ = simulate_network(s.params, s.C, s.B, series.u, self.dt, self.p.substeps)
+                self.states.append(X)
+            elif todo:
+                simulate_network(s.params, s.C, s.B, series.u, self.dt, self.p.substeps, out=self.states[k], only=todo)
+            if todo:
+                self.finite[k, todo] = np.isfinite(self.states[k][:, todo, :]).all(axis=(0, 2))
+        self.element_integrations += len(todo) * len(self.data.series)
+        self._update_gram(s, todo, full)
+        self.cached = s
+        return [X.reshape(X.shape[0], -1) for X in self.states]
+
+    def _update_gram(self, s: LorenzState, todo: list[int], full: bool) -> None:
+        F = [X.reshape(X.shape[0], -1) for X in self.states]
+        Ft, Yt = self.data.stack("train", F), self.data.targets("train")
+        ones = np.ones((Ft.shape[0], 1))
+        A = np.hstack([Ft, ones]) if full or self.G is None else None
+        if A is not None:
+            self.G, self.c = A.T @ A, A.T @ Yt
+            return
+        cols = np.concatenate([np.arange(3 * i, 3 * i + 3) for i in todo]) if todo else np.zeros(0, dtype=int)
+        if cols.size:
+            block = Ft[:, cols]
+            cross = np.hstack([Ft, ones]).T @ block
+            self.G[:, cols] = cross
+            self.G[cols, :] = cross.T
+            self.c[cols] = block.T @ Yt
+
+    def readout(self) -> np.ndarray | None:
+        G = self.G
+        if G is None or not np.all(np.isfinite(G)):
+            return None
+        lam, V = np.linalg.eigh(G)
+        keep = lam > 1e-12 * max(lam[-1], 1e-300)
+        return V[:, keep] @ ((V[:, keep].T @ self.c) / lam[keep, None])
+
+    def score(self, s: LorenzState) -> float:
+        self.evaluations += 1
+        F = self.features(s)
+        if not self.finite.all():
+            return np.inf
+        W = self.readout()
+        if W is None:
+            return np.inf
+        pred = self.data.stack("validation", F) @ W[:-1] + W[-1]
+        err = float(np.mean(np.mean((self.Yv - pred) ** 2, axis=0) / self.var_v))
+        return err if np.isfinite(err) else np.inf

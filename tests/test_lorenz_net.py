@@ -1,0 +1,145 @@
+"""The `lorenz-net` family: driven Lorenz elements (eq. 4.52), networks (4.58 / 4.59), annealing."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import dynmodel
+from dynmodel import engine
+from dynmodel.spec import load_spec
+from dynmodel_plugins.lorenz_net.elements import descendants, integrate_element, simulate_network, step_elements
+from dynmodel_plugins.lorenz_net.params import LorenzNetParams
+from dynmodel_plugins.lorenz_net.search import initial_state, make_moves
+
+from conftest import ROOT, make_spec
+
+
+def test_element_integration_matches_an_adaptive_solver():
+    rng = np.random.default_rng(0)
+    v = rng.uniform(0, 3, 150)
+    s, r, b, a = 10.0, 28.0, 8 / 3, 1.1
+    out = np.empty((150, 3))
+    assert integrate_element(s, r, b, a, v, 0.1, 20, np.zeros(3), out) == -1
+    x, ref = np.zeros(3), []
+    for t in range(150):  # zero-order hold of the drive over each interval
+        def rhs(_, x, vt=v[t]):
+            return [a * s * (vt - x[0]), a * (r * x[0] - x[1] - x[0] * x[2]), a * (x[0] * x[1] - b * x[2])]
+        x = solve_ivp(rhs, (0, 0.1), x, rtol=1e-11, atol=1e-12).y[:, -1]
+        ref.append(x)
+    np.testing.assert_allclose(out, ref, atol=1e-6)
+
+
+def test_every_element_forgets_its_initial_state():
+    """Replicas from far-apart states, same input: they converge (eq. 4.44 / 4.45 Lyapunov function)."""
+    rng = np.random.default_rng(1)
+    p = LorenzNetParams(size=12, strategy="feed-forward", layers=3, extra_links=6)
+    st = initial_state(p, 1, rng)
+    X = rng.uniform(-30, 30, (8, 12, 3))
+    u = rng.uniform(0, 4, 600)
+    out = np.empty_like(X)
+    for t in range(600):
+        step_elements(st.params, st.C, st.B, X, np.full((8, 1), u[t]), 0.1, 4, out)
+        X, out = out, X
+    assert np.max(np.abs(X - X[0])) < 1e-6
+
+
+def test_batched_step_equals_the_network_simulation():
+    rng = np.random.default_rng(2)
+    st = initial_state(LorenzNetParams(size=10, strategy="feed-forward", layers=2, extra_links=5), 2, rng)
+    U = rng.uniform(-1, 2, (80, 2))
+    X, bad = simulate_network(st.params, st.C, st.B, U, 0.1, 3)
+    assert bad == -1
+    state, out = np.zeros((1, 10, 3)), np.empty((1, 10, 3))
+    for t in range(80):
+        step_elements(st.params, st.C, st.B, state, U[t:t + 1], 0.1, 3, out)
+        state, out = out, state
+        np.testing.assert_allclose(state[0], X[t], atol=1e-12)
+
+
+def test_feed_forward_structure_follows_the_thesis():
+    st = initial_state(LorenzNetParams(size=32, strategy="feed-forward"), 1, np.random.default_rng(3))
+    C = st.C
+    assert np.all(np.triu(C) == 0)  # strictly lower triangular: no loops
+    assert list(np.bincount(st.layer)) == [8, 8, 8, 8]
+    for i in np.flatnonzero(st.layer > 0):
+        assert np.any(C[i, st.layer < st.layer[i]] != 0)  # linked to a previous layer
+    assert np.count_nonzero(C) == 24 + 30
+    w = np.abs(C[C != 0])
+    assert np.all((w >= 0.5) & (w <= 1.5))
+    assert np.all(st.B[st.layer == 0] == 1) and np.all(st.B[st.layer > 0] == 0)
+    par = initial_state(LorenzNetParams(size=32, strategy="parallel"), 1, np.random.default_rng(3))
+    assert not par.C.any() and np.all(par.B == 1)
+    lo = np.array([0, 0, 0, 0.8])
+    assert np.all(par.params >= np.maximum(lo, 1e-3)) and np.all(par.params[:, 3] <= 1.2)
+
+
+def test_moves_keep_the_network_loop_free_and_parameters_positive():
+    p = LorenzNetParams(size=16, strategy="feed-forward", layers=4, extra_links=10)
+    rng = np.random.default_rng(4)
+    st = initial_state(p, 1, rng)
+    moves = make_moves(p)
+    for k in range(400):
+        name, _, fn = moves[k % len(moves)]
+        new = fn(st, rng, 1.0)
+        if new is not None:
+            st = new
+        assert np.all(np.triu(st.C) == 0) and np.all(st.params > 0)
+        assert all(np.count_nonzero(st.C[i]) >= 1 for i in np.flatnonzero(st.layer > 0))
+
+
+def test_cached_trajectories_equal_a_full_recomputation():
+    p = LorenzNetParams(size=20, strategy="feed-forward", layers=4, extra_links=12)
+    rng = np.random.default_rng(5)
+    st = initial_state(p, 1, rng)
+    U = rng.uniform(0, 3, (300, 1))
+    cache, _ = simulate_network(st.params, st.C, st.B, U, 0.1, 2)
+    params = st.params.copy()
+    params[6, 0] *= 1.5
+    todo = descendants(st.C, {6})
+    assert todo[0] == 6 and all(i > 6 for i in todo[1:])
+    simulate_network(params, st.C, st.B, U, 0.1, 2, out=cache, only=todo)
+    full, _ = simulate_network(params, st.C, st.B, U, 0.1, 2)
+    np.testing.assert_array_equal(cache, full)
+
+
+def _raw(strategy="feed-forward", steps=40, **params):
+    return {"data": {"generator": "rossler-cross", "n": 3000, "seed": 1, "split": {"train": [0, 2000], "validation": [2000, 3000]},
+                     "test": {"seed": 2, "n": 2000}, "transient": 300, "transient_at": "recording", "scaling": "none"},
+            "model": {"family": "lorenz-net", "params": {"size": 12, "layers": 3, "extra_links": 6, "strategy": strategy,
+                                                         "steps": steps, **params}}, "seed": 0}
+
+
+def test_fit_is_reproducible_saved_exactly_and_annealing_helps(tmp_path):
+    a, b = engine.fit(make_spec(_raw())), engine.fit(make_spec(_raw()))
+    np.testing.assert_array_equal(a.family.element_params_, b.family.element_params_)
+    run = a.family.search_["restarts"][0]
+    assert run["validation_nmse"] < run["initial_validation_nmse"]
+    assert run["element_integrations"] < run["steps"] * 12  # only touched elements are integrated again
+    loaded = dynmodel.load(dynmodel.save(a, tmp_path / "l.h5"))
+    u = np.random.default_rng(9).uniform(0.3, 8, 400)
+    np.testing.assert_array_equal(loaded.predict(u), a.predict(u))
+    assert loaded.family.summary()["couplings"] == np.count_nonzero(a.family.C_)
+
+
+def test_a_validation_split_is_required():
+    raw = _raw()
+    raw["data"]["split"] = {"train": 1.0}
+    with pytest.raises(dynmodel.DynmodelError, match="validation split"):
+        engine.fit(make_spec(raw))
+
+
+@pytest.mark.slow
+def test_thesis_4_4_2_feed_forward_beats_parallel():
+    """Both strategies over 8 runs on the rossler-cross task; see the README for the figures."""
+    results = {}
+    for strategy in ("parallel", "feed-forward"):
+        values = []
+        for seed in range(8):
+            spec = load_spec(ROOT / f"specs/thesis-4.4.2-{strategy}.yaml")
+            spec.seed = seed
+            values.append(engine.fit(spec).metrics["test"]["nmse"])
+        results[strategy] = np.array(values)
+        print(f"\n{strategy}: mean {np.mean(values):.3f} std {np.std(values):.3f}")
+    assert results["feed-forward"].mean() < results["parallel"].mean()
+    assert np.median(results["feed-forward"]) < np.median(results["parallel"])
