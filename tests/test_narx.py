@@ -125,18 +125,23 @@ def test_embedding_pads_with_zeros_and_drop_skips_the_first_patterns():
 
 # ------------------------------------------------------------------------- FOS on the pool
 
-def test_gram_of_the_chunked_pool_equals_the_explicit_one(monkeypatch):
+@pytest.mark.parametrize("n, degree, constant", [(4, 3, True), (3, 5, False), (6, 2, True)])
+def test_gram_by_moments_and_by_chunks_equal_the_explicit_one(monkeypatch, n, degree, constant):
     rng = np.random.default_rng(0)
-    X = rng.standard_normal((3000, 4))
+    X = rng.standard_normal((3000, n))
     Y = rng.standard_normal((3000, 2))
-    E = pool_exponents(4, 3, constant=True)
+    E = pool_exponents(n, degree, constant=constant)
     P = np.column_stack([np.prod(X ** e, axis=1) for e in E])
     monkeypatch.setattr(narx_pool, "_CHUNK_ELEMENTS", 35 * 700)  # several chunks
-    G, C = narx_pool.gram(X, Y, E)
-    np.testing.assert_allclose(G, P.T @ P, rtol=1e-12, atol=1e-9)
-    np.testing.assert_allclose(C, P.T @ Y, rtol=1e-12, atol=1e-9)
+    for method in (narx_pool.moment_gram, narx_pool.chunked_gram, narx_pool.gram):
+        G, C = method(X, Y, E)
+        np.testing.assert_allclose(G, P.T @ P, rtol=1e-11, atol=1e-10 * np.abs(G).max(), err_msg=method.__name__)
+        np.testing.assert_allclose(C, P.T @ Y, rtol=1e-11, atol=1e-10 * np.abs(C).max(), err_msg=method.__name__)
+    table, parent, var = narx_pool.moment_table(n, 2 * degree)
+    assert len(table) == math.comb(n + 2 * degree, 2 * degree) and len({r.tobytes() for r in table}) == len(table)
+    np.testing.assert_array_equal(table[1:], table[parent[1:]] + np.eye(n, dtype=np.int64)[var[1:]])
     lazy = narx_pool.LazyColumns(X, E)
-    np.testing.assert_allclose(lazy[:, [5, 0, 17]], P[:, [5, 0, 17]], rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(lazy[:, [5, 0, 2]], P[:, [5, 0, 2]], rtol=1e-14, atol=1e-15)
 
 
 def test_fos_finds_the_structure_of_a_polynomial_narx_system(tmp_path):
@@ -408,11 +413,45 @@ def test_multi_input_multi_output_and_several_recordings(tmp_path):
         np.testing.assert_allclose(m.family.weights_, [0.5, 0.8, 0.4, -0.1, 0.6, 0.5, 0.2], atol=1e-9)
         assert m.metrics["test"]["per_output"]["y1"]["nmse"] < 1e-12
         assert m.metrics["train"]["samples"] == 2 * (1200 - 1)
+    lags = {"u1": [0], "u2": [0, 1], "y1": [1], "y2": [1]}
     selected = fit({"data": {**data, "scaling": "standard"},
-                    "model": {"family": "narx", "params": {"lags": {"u1": [0], "u2": [0, 1], "y1": [1], "y2": [1]},
-                                                           "degree": 2}}}, tmp_path)
-    assert set(selected.family.selection_["terms"]) and len(selected.family.terms_) == 2
+                    "model": {"family": "narx", "params": {"lags": lags, "degree": 2}}}, tmp_path)
+    assert len(selected.family.terms_) == 2
     assert max(v["nmse"] for v in selected.metrics["test"]["per_output"].values()) < 1e-6
+    # noisy outputs: selection on the linearised free-running error finds both polynomials' terms
+    noisy = {**data, "scaling": "standard", "noise": {"std": 0.3, "splits": ["train", "validation"]}}
+    m = fit({"data": noisy, "model": {"family": "narx", "params": {"lags": lags, "degree": 2, "selection": "free_run"}},
+             "cost": "mse_inf"}, tmp_path)
+    assert set(m.family.terms_[0]) >= {"u1[t]", "y1[t-1]", "y2[t-1]", "y1[t-1] * y2[t-1]"}
+    assert set(m.family.terms_[1]) >= {"u2[t]", "y2[t-1]", "u2[t-1]^2"}
+    assert max(v["nmse"] for v in m.metrics["test"]["per_output"].values()) < 0.1
+
+
+def test_lags_apply_to_delay_line_copies(tmp_path):
+    """Output = input delayed by 40 samples: one regressor on the delay line 'u@40' at lag 0 explains it."""
+    u = np.random.default_rng(3).standard_normal(3000)
+    write_csv(tmp_path / "d.csv", {"u": u, "y": np.concatenate([np.full(40, u[0]), u[:-40]])})
+    raw = {"data": {"path": "d.csv", "input": ["u"], "output": ["y"], "delay_lines": [40], "scaling": "none"},
+           "model": {"family": "narx", "params": {"lags": {"u@40": [0], "y": [1]}, "degree": 2}}}
+    m = fit(raw, tmp_path)
+    assert [r.label for r in m.family.embedding_.regressors] == ["u@40[t]", "y[t-1]"]
+    assert "u@40[t]" in m.family.terms_[0] and m.metrics["test"]["nmse"] < 1e-12
+
+
+def test_unstable_selections_are_shortened_until_the_free_run_stays_in_range():
+    """Degree 3 on 4000 samples: the size FOS keeps by the one-step validation error diverges in
+    free run; by default terms are dropped from the end of the FOS order until it does not (3.1.4)."""
+    raw = {"data": {"generator": "narx-system", "n": 4000, "seed": 1},
+           "model": {"family": "narx", "params": {"degree": 3, "drop_unstable": False}}}
+    kept = fit(raw)
+    assert kept.metrics["train"]["unstable_from"]["sample"] < 2400
+    raw["model"]["params"]["drop_unstable"] = True
+    shortened = fit(raw)
+    dropped = shortened.family.selection_["path"][0]["dropped_for_stability"]
+    assert dropped > 0 and len(shortened.family.weights_) == len(kept.family.weights_) - dropped
+    assert shortened.family.terms_[0] == kept.family.terms_[0][:len(shortened.family.weights_)]
+    for split in ("train", "validation"):
+        assert shortened.metrics[split]["nmse"] < 0.5
 
 
 def test_defaults_work_on_a_first_try():

@@ -261,3 +261,43 @@ def candidate_sensitivities(X, D, ch, lag, fed, live, cptr, creg, cpw, cout, sta
                 for c in range(K):
                     S[i, k, c] += d * row[c]
     return S
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def moment_sums(XT, YT, parent, var, n_low, chunk):
+    """Sums over the samples of every monomial of a table built factor by factor (monomial k is
+    monomial parent[k] times regressor var[k]; k = 0 is the constant), and of the first ``n_low``
+    monomials times each target: (acc (M,), acc_y (n_low, q)). XT: (n_reg, N), YT: (q, N)."""
+    N = XT.shape[1]
+    M = parent.shape[0]
+    q = YT.shape[0]
+    acc = np.zeros(M)
+    acc_y = np.zeros((n_low, q))
+    buf = np.empty((M, chunk))
+    for a in range(0, N, chunk):
+        m = min(N, a + chunk) - a
+        for i in range(m):
+            buf[0, i] = 1.0
+        acc[0] += m
+        for j in range(q):
+            s = 0.0
+            for i in range(m):
+                s += YT[j, a + i]
+            acc_y[0, j] += s
+        for k in range(1, M):
+            row = buf[parent[k]]
+            x = XT[var[k]]
+            out = buf[k]
+            s = 0.0
+            for i in range(m):
+                v = row[i] * x[a + i]
+                out[i] = v
+                s += v
+            acc[k] += s
+            if k < n_low:
+                for j in range(q):
+                    s = 0.0
+                    for i in range(m):
+                        s += out[i] * YT[j, a + i]
+                    acc_y[k, j] += s
+    return acc, acc_y

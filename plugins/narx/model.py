@@ -15,14 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from dynmodel import regression
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Family, Progress, Simulation, no_progress
 
 from . import pool as pool_mod
-from .embedding import (Embedding, Regressor, build_embedding, exponents_of, parse_term, pool_exponents, pool_size,
-                        term_label)
+from .embedding import Embedding, Regressor, build_embedding, exponents_of, parse_term, term_label
 from .estimation import FreeRunProblem, Scored, Structure, diverges, make_structure, refine, split_error
+from .onestep import fixed_weights, fos_structure, make_pool, ridge_candidates
 from .params import NarxParams
 from .selection import free_run_selection
 
@@ -90,21 +89,21 @@ class Narx(Family):
                 raise ValueError("ridge applies to least-squares weights; selection: free_run estimates them on the "
                                  "free-running error, so leave ridge out (or use selection: one_step)")
             self._check_initial(data)
-            E = self._pool()
             exps, outs, weights, self.selection_ = free_run_selection(
-                emb, E, data, self.n_outputs_, self.warmup, (self.clip_lo_, self.clip_hi_), self._bounds, p, progress)
+                emb, make_pool(emb.size, p), data, self.n_outputs_, self.warmup, (self.clip_lo_, self.clip_hi_), self._bounds, p, progress)
             self.exponents_, self.term_output_, self.weights_ = exps, outs, weights
             return self
         if fixed is not None:
             exps, outs = self._fixed_structure(fixed, data.output_names)
-            weights = self._weights_fixed(train, exps, outs)
+            weights = fixed_weights(train, exps, outs, self.n_outputs_)
             self.selection_ = {"method": "fixed", "terms": [int(np.sum(outs == k)) for k in range(self.n_outputs_)]}
         else:
-            exps, outs, weights = self._fos(data, train, val, progress)
+            exps, outs, weights, self.selection_ = fos_structure(
+                make_pool(emb.size, p), train, val, p, self.output_names_, self._stability_check(data), progress)
         self.exponents_, self.term_output_ = exps, outs
         self.weights_ = weights
         if p.ridge is not None:
-            self._ridge(data, train, val, progress)
+            self._ridge(data, train, progress)
 
         if cost == "mse_inf":
             self._refine(data, progress)
@@ -141,22 +140,6 @@ class Narx(Family):
             outs += [k] * len(E)
         return np.vstack(rows), np.array(outs, dtype=np.int64)
 
-    def _weights_fixed(self, train: pool_mod.Patterns, exps: np.ndarray, outs: np.ndarray) -> np.ndarray:
-        w = np.zeros(len(outs))
-        for k in range(self.n_outputs_):
-            idx = np.flatnonzero(outs == k)
-            F = pool_mod.evaluate(train.X, exps[idx])
-            w[idx] = regression.lstsq(F, train.Y[:, k], fit_intercept=False).coef[:, 0]
-        return w
-
-    def _pool(self) -> np.ndarray:
-        p, emb = self.params, self.embedding_
-        K = pool_size(emb.size, p.degree, p.constant)
-        if K > p.max_pool:
-            raise ValueError(f"the pool would hold {K} monomials ({emb.size} regressors up to degree {p.degree}), more "
-                             f"than max_pool = {p.max_pool}; lower the degree, use fewer lags, or raise max_pool")
-        return pool_exponents(emb.size, p.degree, p.constant)
-
     def _stability_check(self, data: TrainingData):
         """diverges(k, exponents, weights): does output k's polynomial, fed back its own prediction
         (the other outputs measured), leave the divergence band on the training or validation data?
@@ -177,48 +160,6 @@ class Narx(Family):
 
         return check
 
-    def _fos(self, data: TrainingData, train: pool_mod.Patterns, val: pool_mod.Patterns | None, progress: Progress):
-        """FOS (A.2.2) per output on the shared Gram matrix; weights by least squares or A.14 / A.15."""
-        p = self.params
-        E = self._pool()
-        progress("pool", None, f"Gram matrix of {E.shape[0]} monomials on {train.n} patterns")
-        G, C = pool_mod.gram(train.X, train.Y, E)
-        use_val = val is not None and p.patience is not None
-        if not use_val and p.max_terms is None and p.threshold is None:
-            raise ValueError("FOS needs a stopping rule: a validation split (data.split.validation, used with patience), "
-                             "max_terms or threshold")
-        lazy = pool_mod.LazyColumns(val.X, E) if use_val else None
-        forced = (0,) if p.constant else ()
-        stability = self._stability_check(data)
-        rows, outs, weights, info = [], [], [], []
-        for k in range(self.n_outputs_):
-            y = train.Y[:, k]
-            path = regression.fos_select(G, C[:, k], float(y @ y), forced=forced, max_terms=p.max_terms,
-                                         threshold=p.threshold, Pv=lazy, yv=val.Y[:, k] if use_val else None,
-                                         patience=p.patience or 1)
-            best = path.best
-            if best == 0:
-                raise ValueError(f"FOS selected no term for output '{self.output_names_[k]}'; lower the threshold")
-            dropped = 0
-            if p.drop_unstable and stability is not None:
-                while best > 1 and stability(k, E[path.order[:best]], path.coef_path[best - 1]):
-                    best -= 1
-                    dropped += 1
-            kept = path.order[:best]
-            if p.weights == "recursion":
-                w = path.coef_path[best - 1]
-            else:
-                w = regression.lstsq(pool_mod.evaluate(train.X, E[kept]), y, fit_intercept=False).coef[:, 0]
-            rows.append(E[kept])
-            outs += [k] * len(kept)
-            weights.append(w)
-            info.append({"order": kept.tolist(), "error_reduction": (path.error_reduction[:best] / max(y @ y, 1e-300)).tolist(),
-                         "validation_mse": None if path.validation_error is None else path.validation_error.tolist(),
-                         "dropped_for_stability": dropped})
-            progress("fos", (k + 1) / self.n_outputs_, f"output {self.output_names_[k]}: {len(kept)} terms")
-        self.selection_ = {"method": "fos", "pool": int(E.shape[0]), "terms": [len(r) for r in rows], "path": info}
-        return np.vstack(rows), np.array(outs, dtype=np.int64), np.concatenate(weights)
-
     def _set_clip(self, Y: np.ndarray) -> None:
         """Output bounds of eq. 6.25: the training range widened by ``bounds`` x its width."""
         if self.params.bounds is None:
@@ -231,51 +172,32 @@ class Narx(Family):
         self.clip_hi_ = hi + self.params.bounds * width
 
     # ------------------------------------------------------------------ ridge (6.3.2)
-    def _ridge(self, data: TrainingData, train: pool_mod.Patterns, val: pool_mod.Patterns | None,
-               progress: Progress) -> None:
-        """Ridge weights for the selected terms; the constant is not penalised. ``auto``: the factor
-        (29 values over [1e-14, 1] x the largest squared singular value) whose free run has the
-        lowest validation error."""
-        p = self.params
-        const = ~self.exponents_.any(axis=1)
-        per_output = []
-        for k in range(self.n_outputs_):
-            idx = np.flatnonzero(self.term_output_ == k)
-            has_const = bool(const[idx].any())
-            cols = idx[~const[idx]]
-            F = pool_mod.evaluate(train.X, self.exponents_[cols])
-            alphas = None if p.ridge == "auto" else [float(p.ridge)]
-            fits = regression.ridge_path(F, train.Y[:, k], alphas, fit_intercept=has_const)
-            per_output.append((idx, cols, has_const, fits))
-        n_alpha = len(per_output[0][3])
-
-        def weights_at(i: int) -> np.ndarray:
-            w = self.weights_.copy()
-            for idx, cols, has_const, fits in per_output:
-                w[cols] = fits[i].coef[:, 0]
-                if has_const:
-                    w[idx[const[idx]]] = fits[i].intercept[0]
-            return w
-
-        self.ridge_ = {"alpha": [fits[0].info["alpha"] for *_, fits in per_output]}
-        if n_alpha == 1:
-            self.weights_ = weights_at(0)
+    def _ridge(self, data: TrainingData, train: pool_mod.Patterns, progress: Progress) -> None:
+        """Ridge weights for the selected terms. ``auto``: the factor whose free run has the lowest
+        validation error (thesis 6.3.2: ridge as a stabilizer, its factor tuned on validation)."""
+        vectors, factors = ridge_candidates(train, self.exponents_, self.term_output_, self.weights_,
+                                            self.params.ridge)
+        if len(vectors) == 1:
+            self.weights_, self.ridge_ = vectors[0], {"alpha": factors[0]}
             return
         if not data.has("validation"):
             raise ValueError("ridge: auto chooses the factor on the validation split, and there is none; "
                              "give a number or add a validation split")
+        self._check_initial(data)
         st = self._structure()
         scored = Scored.of(data, "validation", st.start)
         errors = []
-        for i in range(n_alpha):
-            errors.append(split_error(st, data, scored, weights_at(i), self._bounds))
-            progress("ridge", (i + 1) / n_alpha, f"factor {i + 1}/{n_alpha}")
-        best = int(np.argmin(errors))
-        if not np.isfinite(errors[best]):
-            warnings.warn("ridge: every factor tried diverges in free run on the validation split; keeping the largest",
-                          stacklevel=2)
-        self.weights_ = weights_at(best)
-        self.ridge_ = {"alpha": [fits[best].info["alpha"] for *_, fits in per_output],
+        for i, v in enumerate(vectors):
+            errors.append(split_error(st, data, scored, v, self._bounds))
+            progress("ridge", (i + 1) / len(vectors), f"factor {i + 1}/{len(vectors)}")
+        if np.isfinite(errors).any():
+            best = int(np.argmin(errors))
+        else:
+            best = len(vectors) - 1
+            warnings.warn("ridge: the free run diverges on the validation split for every factor tried; keeping the "
+                          "largest", stacklevel=2)
+        self.weights_ = vectors[best]
+        self.ridge_ = {"alpha": factors[best],
                        "validation_nmse": [None if not np.isfinite(e) else 100 * e for e in errors]}
 
     # ------------------------------------------------------------------ mse_inf (3.15, 6.3.2)
