@@ -13,7 +13,7 @@ from dynmodel import engine, regression
 from dynmodel.data import Preprocessor, load_dataset, training_data
 from dynmodel.errors import DynmodelError, SpecError
 from dynmodel.spec import NoiseSpec, load_spec, validate_spec
-from dynmodel_plugins.narx import Narx, NarxParams
+from dynmodel_plugins.narx import Narx, NarxFamilyParams
 from dynmodel_plugins.narx import kernels
 from dynmodel_plugins.narx import pool as narx_pool
 from dynmodel_plugins.narx.embedding import (build_embedding, exponents_of, factor_lists, parse_term, pool_exponents,
@@ -49,7 +49,7 @@ def loaded(raw: dict, base=None):
 # ------------------------------------------------------------------------- embedding and pool
 
 def test_lags_accept_integers_and_inclusive_ranges():
-    p = NarxParams(lags={"position": [0, {"from": 2, "to": 18, "step": 2}], "force": [{"from": 1, "to": 3}, 1]})
+    p = NarxFamilyParams(lags={"position": [0, {"from": 2, "to": 18, "step": 2}], "force": [{"from": 1, "to": 3}, 1]})
     assert p.lag_table() == {"position": [0, 2, 4, 6, 8, 10, 12, 14, 16, 18], "force": [1, 2, 3]}
     # the resolved spec keeps the range syntax and validates again to the same thing
     raw = narx_raw(lags={"u": [{"from": 0, "to": 4, "step": 2}], "y": [1]})
@@ -308,6 +308,26 @@ def test_divergence_is_reported_with_its_sample_and_bounds_stabilize_the_free_ru
     y = bounded.predict(test.u, y_tune=test.y[:2])[2:, 0]
     train_y = load_dataset(validate_spec(raw)).recordings[0].y[:3000, 0]
     assert y.max() <= train_y.max() + 1e-12 and y.min() >= train_y.min() - 1e-12
+
+
+def test_explicit_bounds_are_in_the_data_units_and_may_be_one_sided():
+    """Eq. 6.25 with L = -inf and U in physical units, on standardised data (the thesis's U = -0.42)."""
+    raw = narx_raw(n=3000, test_n=1000, max_terms=6, patience=None, bounds={"y": [None, 2.0]})
+    raw["data"]["scaling"] = "standard"
+    m = fit(raw)
+    u, y = narx(2000, 8)
+    pred = m.predict(u, y_tune=y[:2])[2:, 0]
+    assert pred.max() == pytest.approx(2.0, abs=1e-12) and np.sum(pred >= 2.0 - 1e-12) > 10
+    assert pred.min() < -2.0
+    free = fit({**raw, "model": {"family": "narx", "params": {**raw["model"]["params"], "bounds": None}}})
+    first = int(np.argmax(pred >= 2.0 - 1e-12))  # identical runs until the first clipped sample
+    unclipped = free.predict(u, y_tune=y[:2])[2:, 0]
+    np.testing.assert_allclose(unclipped[:first], pred[:first], rtol=1e-12)
+    assert unclipped[first] > 2.0
+    with pytest.raises(SpecError, match="must lie below"):
+        validate_spec({**raw, "model": {"family": "narx", "params": {"bounds": {"y": [1.0, 0.5]}}}})
+    with pytest.raises(DynmodelError, match="'z' is not an output"):
+        fit({**raw, "model": {"family": "narx", "params": {**raw["model"]["params"], "bounds": {"z": [0, 1]}}}})
 
 
 def test_fit_cli_exits_1_with_one_line_on_a_diverging_free_run(cli, tmp_path):

@@ -22,18 +22,18 @@ from . import pool as pool_mod
 from .embedding import Embedding, Regressor, build_embedding, exponents_of, parse_term, term_label
 from .estimation import FreeRunProblem, Scored, Structure, diverges, make_structure, refine, split_error
 from .onestep import fixed_weights, fos_structure, make_pool, ridge_candidates
-from .params import NarxParams
+from .params import NarxFamilyParams
 from .selection import free_run_selection
 
 
 class Narx(Family):
     name = "narx"
     description = "polynomial NARX model: FOS structure selection, free-running estimation (thesis 3.1, 3.2, A.2.2, 6.3.2)"
-    Params = NarxParams
+    Params = NarxFamilyParams
     stability_hint = ("use cost: mse_inf (free-running estimation), bounds: 0.1 (clip the output, eq. 6.25), ridge: auto, "
                       "or a lower degree")
 
-    params: NarxParams
+    params: NarxFamilyParams
 
     # ------------------------------------------------------------------ structure
     @property
@@ -78,7 +78,7 @@ class Narx(Family):
         if val is not None and val.n == 0:
             val = None
         self._bounds = data.output_bounds()
-        self._set_clip(train.Y)
+        self._set_clip(data, train.Y)
 
         self.refinement_: list[dict[str, Any]] = []
         if p.selection == "free_run" and fixed is None:
@@ -160,16 +160,25 @@ class Narx(Family):
 
         return check
 
-    def _set_clip(self, Y: np.ndarray) -> None:
-        """Output bounds of eq. 6.25: the training range widened by ``bounds`` x its width."""
-        if self.params.bounds is None:
-            self.clip_lo_ = np.full(self.n_outputs_, -np.inf)
-            self.clip_hi_ = np.full(self.n_outputs_, np.inf)
+    def _set_clip(self, data: TrainingData, Y: np.ndarray) -> None:
+        """Output bounds [L, U] of eq. 6.25 in model space: the training range widened by ``bounds``
+        x its width, or the given values converted from the data's units."""
+        b = self.params.bounds
+        self.clip_lo_ = np.full(self.n_outputs_, -np.inf)
+        self.clip_hi_ = np.full(self.n_outputs_, np.inf)
+        if b is None:
+            return
+        if isinstance(b, dict):
+            unknown = [k for k in b if k not in self.output_names_]
+            if unknown:
+                raise ValueError(f"bounds: '{unknown[0]}' is not an output; the outputs are {self.output_names_}")
+            lo = np.array([-np.inf if b.get(n, (None, None))[0] is None else b[n][0] for n in self.output_names_])
+            hi = np.array([np.inf if b.get(n, (None, None))[1] is None else b[n][1] for n in self.output_names_])
+            self.clip_lo_, self.clip_hi_ = data.to_model_outputs(lo), data.to_model_outputs(hi)
             return
         lo, hi = Y.min(axis=0), Y.max(axis=0)
-        width = hi - lo
-        self.clip_lo_ = lo - self.params.bounds * width
-        self.clip_hi_ = hi + self.params.bounds * width
+        self.clip_lo_ = lo - b * (hi - lo)
+        self.clip_hi_ = hi + b * (hi - lo)
 
     # ------------------------------------------------------------------ ridge (6.3.2)
     def _ridge(self, data: TrainingData, train: pool_mod.Patterns, progress: Progress) -> None:
@@ -315,7 +324,7 @@ class Narx(Family):
                                               for wi, t in zip(w, self.terms_[k])).replace("+ -", "- ")
         info["warmup"] = self.warmup
         if np.isfinite(self.clip_lo_).any():
-            info["bounds"] = [[float(a), float(b)] for a, b in zip(self.clip_lo_, self.clip_hi_)]
+            info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(self.clip_lo_, self.clip_hi_)]
         if getattr(self, "ridge_", None):
             info["ridge factor"] = self.ridge_["alpha"]
         if self.refinement_:

@@ -18,13 +18,13 @@ from dynmodel.family import Progress
 
 from . import pool as pool_mod
 from .embedding import pool_exponents, pool_size
-from .params import NarxParams
+from .params import NarxFamilyParams
 
 #: stability(k, exponents, weights) -> True when output k's polynomial diverges in free run
 StabilityCheck = Callable[[int, np.ndarray, np.ndarray], bool]
 
 
-def make_pool(n_regressors: int, p: NarxParams) -> np.ndarray:
+def make_pool(n_regressors: int, p: NarxFamilyParams) -> np.ndarray:
     K = pool_size(n_regressors, p.degree, p.constant)
     if K > p.max_pool:
         raise ValueError(f"the pool would hold {K} monomials ({n_regressors} regressors up to degree {p.degree}), more "
@@ -32,7 +32,7 @@ def make_pool(n_regressors: int, p: NarxParams) -> np.ndarray:
     return pool_exponents(n_regressors, p.degree, p.constant)
 
 
-def fos_structure(E: np.ndarray, train: pool_mod.Patterns, val: pool_mod.Patterns | None, p: NarxParams,
+def fos_structure(E: np.ndarray, train: pool_mod.Patterns, val: pool_mod.Patterns | None, p: NarxFamilyParams,
                   output_names: list[str], stability: StabilityCheck | None, progress: Progress):
     """FOS per output on the shared Gram matrix; returns (exponents, term outputs, weights, info)."""
     progress("pool", None, f"Gram matrix of {E.shape[0]} monomials on {train.n} patterns")

@@ -6,7 +6,7 @@ Lags are written per data column (model input names, including delay-line copies
 """
 from __future__ import annotations
 
-from typing import Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal, Optional, Union
 
 import numpy as np
 
@@ -49,7 +49,7 @@ def expand_lags(items: list[LagItem]) -> list[int]:
     return sorted(out)
 
 
-class Refinement(FamilyParams):
+class FreeRunRefinement(FamilyParams):
     """`cost: mse_inf`: the selected weights re-estimated on free-running error (eq. 3.15)."""
 
     solver: Literal["lm", "trf"] = Field(
@@ -62,7 +62,7 @@ class Refinement(FamilyParams):
                                            "thesis 6.3.2)")
 
 
-class NarxParams(FamilyParams):
+class NarxFamilyParams(FamilyParams):
     lags: Optional[dict[str, list[LagItem]]] = Field(
         None, description="regressors per data column: {name: [lags]}, a lag being an integer or {from, to, step} "
         "(ends included); inputs may use lag 0, outputs start at 1. Default: every input [0, 1, 2], every output [1, 2]")
@@ -92,9 +92,10 @@ class NarxParams(FamilyParams):
     ridge: Optional[Union[float, Literal["auto"]]] = Field(
         None, description="ridge factor k for the selected terms (stabilization, thesis 6.3.2): a number >= 0, or auto: "
         "the factor with the lowest free-running validation error")
-    bounds: Optional[float] = Field(
-        None, ge=0, description="clip the free-running output to the training range widened by this fraction of the range "
-        "on both sides (eq. 6.25); null: no clipping")
+    bounds: Optional[Union[Annotated[float, Field(ge=0)], dict[str, tuple[Optional[float], Optional[float]]]]] = Field(
+        None, description="clip the free-running output (eq. 6.25): a number m clips every output to its training range "
+        "widened by m x the range on both sides; {output: [L, U]} gives bounds in the data's units (null: that side "
+        "unbounded); null: no clipping")
     start: Literal["drop", "zeros"] = Field(
         "drop", description="training patterns at a recording's start (thesis 3.1.1): drop those whose regressors reach "
         "before the first sample, or fill the missing past with zeros")
@@ -103,7 +104,7 @@ class NarxParams(FamilyParams):
         "and the prediction starts at sample L; zeros: every value before the first sample is 0 (model space)")
     max_pool: int = Field(3000, ge=1, description="refuse pools with more monomials than this (memory and time grow with "
                                                   "its square)")
-    refinement: Refinement = Field(default_factory=Refinement)
+    refinement: FreeRunRefinement = Field(default_factory=FreeRunRefinement)
 
     @field_validator("lags", mode="before")
     @classmethod
@@ -140,6 +141,15 @@ class NarxParams(FamilyParams):
         if not any(expand_lags(items) for items in out.values()):
             raise ValueError("give at least one lag, e.g. {u: [0, 1], y: [1]}")
         return out
+
+    @field_validator("bounds")
+    @classmethod
+    def _bounds(cls, v):
+        if isinstance(v, dict):
+            for name, (lo, hi) in v.items():
+                if lo is not None and hi is not None and not lo < hi:
+                    raise ValueError(f"bounds of '{name}': the lower bound {lo} must lie below the upper bound {hi}")
+        return v
 
     @field_validator("ridge")
     @classmethod
