@@ -244,6 +244,9 @@ class Narx(Family):
             start["validation_nmse"] = None if not np.isfinite(e) else 100 * e
         self.refinement_.append(start)
         self.weights_ = refine(problem, self.weights_, mixes, r.solver, r.max_nfev, r.tol, record)
+        if diverges(st, data, scored, self.weights_, self._bounds):
+            warnings.warn("cost mse_inf: the re-estimated model still leaves the divergence band in free run on the "
+                          "training data; try bounds, ridge, a lower degree or fewer terms", stacklevel=2)
 
     def _check_initial(self, data: TrainingData) -> None:
         L = self.warmup
@@ -329,6 +332,9 @@ class Narx(Family):
             info["ridge factor"] = self.ridge_["alpha"]
         if self.refinement_:
             last = self.refinement_[-1]
-            info["mse_inf"] = {"solves": len(self.refinement_) - 1, "started_diverged": self.refinement_[0].get("diverged"),
-                               "validation_nmse": last.get("validation_nmse")}
+            info["mse_inf solves"] = len(self.refinement_) - 1
+            if self.refinement_[0].get("diverged"):
+                info["mse_inf error propagation"] = "the least-squares model diverged; mixture ramped to pure prediction"
+            if last.get("validation_nmse") is not None:
+                info["mse_inf validation NMSE %"] = round(float(last["validation_nmse"]), 6)
         return info
