@@ -28,6 +28,7 @@ from dynmodel.family import Progress
 from . import kernels
 from .embedding import OUTPUT, Embedding, factor_lists
 from .estimation import FreeRunProblem, Scored, make_structure, refine, split_error
+from .params import NarxFamilyParams
 
 _ROWS = 4096  # sensitivity rows per chunk
 
@@ -98,8 +99,8 @@ def _sensitivity_gram(emb: Embedding, st, data: TrainingData, scored: Scored, w:
 
 
 def free_run_selection(emb: Embedding, pool: np.ndarray, data: TrainingData, n_out: int, start: int,
-                       clip: tuple[np.ndarray, np.ndarray], band: tuple[np.ndarray, np.ndarray], params,
-                       progress: Progress) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+                       clip: tuple[np.ndarray, np.ndarray], band: tuple[np.ndarray, np.ndarray],
+                       params: NarxFamilyParams, progress: Progress) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
     """Grow the model term by term on the linearised free-running error (module docstring)."""
     p = params
     r = p.refinement
