@@ -16,6 +16,7 @@ from typing import Any, Callable, Optional
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from . import __version__
@@ -154,8 +155,7 @@ def fit(spec: Path = typer.Argument(..., help="YAML spec"),
         raise FreeRunDiverged(
             f"the free run diverged on the {bad['split']} split at sample {bad['sample']} "
             f"(t = {bad['time']:.6g}) of recording '{bad['recording']}'",
-            str(spec), "use cost: mse_inf, the internal mode or a smaller spectral scale; the model was saved "
-                       "for inspection", sample=bad["sample"])
+            str(spec), f"{model.family.stability_hint}; the model was saved for inspection", sample=bad["sample"])
 
 
 def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
@@ -193,7 +193,7 @@ def validate(spec: Path = typer.Argument(..., help="YAML spec"),
     for col in ("split", "samples", "scored", "segments"):
         table.add_column(col)
     for row in describe(ds):
-        table.add_row(row["split"], str(row["samples"]), str(row["scored"]), ", ".join(row["segments"]))
+        table.add_row(row["split"], str(row["samples"]), str(row["scored"]), escape(", ".join(row["segments"])))
     out.print(table)
     if resolved:
         print(yaml.safe_dump(s.resolved(), sort_keys=False))
@@ -233,7 +233,7 @@ def predict(model_path: Path = typer.Argument(..., metavar="MODEL", help="model 
         except DataError:
             outs = ", ".join(f"'{n}'" for n in model.output_names)
             raise DataError(
-                f"this external-mode model tunes in on the first {need} measured samples of output column(s) {outs}, "
+                f"this model tunes in on the first {need} measured samples of output column(s) {outs}, "
                 f"and {source.name} has none", str(source),
                 f"add column(s) {outs} to {input_path.name} (only the first {need} rows are read) or pass "
                 "--tune-in FILE") from None
@@ -304,13 +304,13 @@ def inspect(model_path: Path = typer.Argument(..., metavar="MODEL"),
     facts.add_column(style="dim")
     facts.add_column()
     for key in ("cost", "inputs", "outputs", "delay_lines", "scaling", "sampling_time", "tune_in_samples"):
-        facts.add_row(key, str(summary[key]))
+        facts.add_row(key, escape(str(summary[key])))
     for key, value in summary["model"].items():
-        facts.add_row(key, str(value))
+        facts.add_row(key, escape(str(value)))
     prov = model.provenance
     for key in ("dynmodel_version", "created", "seed", "training_data_sha256", "spec_file"):
         if key in prov:
-            facts.add_row(key, str(prov[key]))
+            facts.add_row(key, escape(str(prov[key])))
     out.print(facts)
     out.print(metrics_table(model.metrics, "free-run metrics"))
     if spec:

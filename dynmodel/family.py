@@ -47,6 +47,8 @@ class Family(ABC):
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     Params: ClassVar[type[FamilyParams]] = FamilyParams
+    #: what to try when a free run diverges (the fix of the one-line error)
+    stability_hint: ClassVar[str] = "use cost: mse_inf"
 
     def __init__(self, **params: Any):
         self.params = self.Params(**params)

@@ -74,32 +74,41 @@ def lstsq(F: np.ndarray, Y: np.ndarray, rcond: float | None = None, fit_intercep
     return LinearFit(W, np.zeros(Y.shape[1]), info={"rank": int(keep.sum())})
 
 
+def ridge_path(F: np.ndarray, Y: np.ndarray, alphas=None, fit_intercept: bool = True) -> list[LinearFit]:
+    """Ridge solutions of ||Y - F w - b||^2 + alpha ||w||^2 for every alpha from one SVD (the
+    intercept b is not penalised; ``fit_intercept=False``: b = 0). ``alphas=None``: the grid of
+    ``alpha='auto'``, 29 factors log-spaced over [1e-14, 1] times the largest squared singular
+    value of the (centred) F."""
+    Y = _as2d(Y)
+    F = np.asarray(F, dtype=np.float64)
+    fm = F.mean(axis=0) if fit_intercept else np.zeros(F.shape[1])
+    ym = Y.mean(axis=0) if fit_intercept else np.zeros(Y.shape[1])
+    R, QtY = qr_reduce(F - fm, Y - ym)
+    U, s, Vt = np.linalg.svd(R)
+    UtY = U.T @ QtY
+    if alphas is None:
+        alphas = (s[0] ** 2 if s.size and s[0] > 0 else 1.0) * np.logspace(-14, 0, 29)
+    fits = []
+    for a in alphas:
+        W = Vt.T @ (UtY * (s / (s**2 + a))[:, None])
+        fits.append(LinearFit(W, ym - fm @ W, info={"alpha": float(a)}))
+    return fits
+
+
 def ridge(F: np.ndarray, Y: np.ndarray, alpha: float | str = "auto", Fv: np.ndarray | None = None,
-          Yv: np.ndarray | None = None, alphas: np.ndarray | None = None) -> LinearFit:
+          Yv: np.ndarray | None = None, alphas: np.ndarray | None = None, fit_intercept: bool = True) -> LinearFit:
     """Minimise ||Y - F w - b||^2 + alpha ||w||^2 (intercept not penalised).
 
     ``alpha='auto'``: the factor with the lowest validation error on (Fv, Yv) from a
     log-spaced grid relative to the largest squared singular value of the centred F.
     """
-    Y = _as2d(Y)
-    fm, ym = F.mean(axis=0), Y.mean(axis=0)
-    R, QtY = qr_reduce(F - fm, Y - ym)
-    U, s, Vt = np.linalg.svd(R)
-    UtY = U.T @ QtY
-
-    def solve(a: float) -> LinearFit:
-        W = Vt.T @ (UtY * (s / (s**2 + a))[:, None])
-        return LinearFit(W, ym - fm @ W, info={"alpha": float(a)})
-
     if alpha != "auto":
-        return solve(float(alpha))
+        return ridge_path(F, Y, [float(alpha)], fit_intercept)[0]
     if Fv is None or Yv is None:
         raise ValueError("ridge with alpha='auto' needs a validation set")
     Yv = _as2d(Yv)
-    grid = alphas if alphas is not None else (s[0] ** 2 if s.size else 1.0) * np.logspace(-14, 0, 29)
     best, best_err = None, np.inf
-    for a in grid:
-        fit = solve(a)
+    for fit in ridge_path(F, Y, alphas, fit_intercept):
         err = float(np.mean((Yv - fit.predict(Fv)) ** 2))
         if err < best_err:
             best, best_err = fit, err
@@ -124,7 +133,7 @@ class FosPath:
 def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ...] = (),
                max_terms: int | None = None, threshold: float | None = None,
                Pv: np.ndarray | None = None, yv: np.ndarray | None = None, patience: int = 1,
-               tol: float = 1e-10) -> FosPath:
+               tol: float = 1e-10, ties: float = 0.0) -> FosPath:
     """Korenberg's FOS on the Gram matrix G = P^T P of the pool P, c = P^T y, yy = y^T y.
 
     The recursion keeps, for every remaining candidate i, D~(m, j, i) (its inner products with
@@ -136,6 +145,8 @@ def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ..
     Stopping: ``max_terms``; ``threshold`` on Q / yy (the error-reduction ratio); or, with a
     validation pool ``Pv`` and targets ``yv``, after ``patience`` terms without a new lowest
     validation error (``patience=1``: stop at the first rise). The kept size is the best one.
+    ``ties``: candidates whose error reduction is within this relative tolerance of the largest
+    count as equal and the first of them in pool order is chosen (e.g. the lower-degree monomial).
     """
     P = G.shape[0]
     limit = P if max_terms is None else min(max_terms, P)
@@ -170,6 +181,8 @@ def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ..
         else:
             score = np.where(valid, Ct * Ct / np.where(valid, Dmm, 1.0), -np.inf)
             i = int(np.argmax(score))
+            if ties > 0.0:  # the first of the (nearly) best candidates in pool order
+                i = int(np.flatnonzero(score >= score[i] * (1.0 - ties))[0])
             if threshold is not None and score[i] < threshold * yy:
                 break
         alpha[m, :m] = Dt[:m, i] / D[:m]

@@ -382,7 +382,7 @@ def _precheck_plugins(raw: dict[str, Any], source: str) -> None:
     data = raw.get("data")
     for section, where in [(data, "data"), ((data or {}).get("test") if isinstance(data, dict) else None, "data.test"),
                            ((data or {}).get("validation") if isinstance(data, dict) else None, "data.validation")]:
-        if isinstance(section, dict) and "generator" in section:
+        if isinstance(section, dict) and section.get("generator") is not None:
             known = sorted(registry.sources())
             if section["generator"] not in known:
                 what, fix = registry.unknown_name_message("generator", str(section["generator"]), known)

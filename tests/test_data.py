@@ -146,3 +146,14 @@ def test_several_recordings_keep_their_own_starts(tmp_path):
     raw["data"] = {**raw["data"], "path": "a.csv", "segments": [[0, 1000], [1000, 3000]]}
     ds = load_dataset(make_spec(raw, tmp_path))
     assert [r.n for r in ds.recordings] == [1000, 2000]
+
+
+def test_training_data_converts_physical_output_values_to_model_space(tmp_path):
+    u, y = narx(2000, 4)
+    path = write_csv(tmp_path / "d.csv", {"u": u, "y": 50 + 3 * y})
+    ds = load_dataset(_file_spec(path))
+    pre = Preprocessor.fit(ds, [], "standard")
+    td = training_data(ds, pre)
+    values = np.array([40.0, 60.0])
+    np.testing.assert_allclose(td.to_model_outputs(values[:, None])[:, 0], pre.outputs(values[:, None])[:, 0])
+    np.testing.assert_allclose(pre.physical_outputs(td.to_model_outputs(values[:, None])), values[:, None])

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynmodel.regression import fos, fos_select, lstsq, ridge
+from dynmodel.regression import fos, fos_select, lstsq, ridge, ridge_path
 
 
 @pytest.fixture
@@ -74,3 +74,25 @@ def test_fos_error_reductions_sum_to_the_explained_energy(sparse_problem):
     assert np.isclose(y @ y - path.error_reduction.sum(), resid @ resid, rtol=1e-9)
     thr = fos(F, y, threshold=1e-3)
     assert thr.selected[0].tolist() == [1, 6, 12]
+
+
+def test_ridge_path_without_intercept_equals_the_closed_form(sparse_problem):
+    F, y, _, _ = sparse_problem
+    alphas = [0.0, 1.0, 100.0]
+    for a, fit in zip(alphas, ridge_path(F[:, :9], y, alphas, fit_intercept=False)):
+        w = np.linalg.solve(F[:, :9].T @ F[:, :9] + a * np.eye(9), F[:, :9].T @ y)
+        np.testing.assert_allclose(fit.coef[:, 0], w, rtol=1e-9, atol=1e-12)
+        assert fit.intercept[0] == 0.0 and fit.info["alpha"] == a
+    assert len(ridge_path(F, y)) == 29  # the grid of alpha='auto'
+
+
+def test_fos_ties_prefer_the_first_candidate_in_pool_order():
+    rng = np.random.default_rng(1)
+    x = rng.standard_normal(500)
+    P = np.column_stack([np.ones(500), 3.0 * x, x, rng.standard_normal(500)])  # columns 1 and 2 are the same direction
+    y = 2.0 * x + 0.01 * rng.standard_normal(500)
+    G, c = P.T @ P, P.T @ y
+    plain = fos_select(G, c, float(y @ y), forced=(0,), max_terms=2)
+    tied = fos_select(G, c, float(y @ y), forced=(0,), max_terms=2, ties=1e-9)
+    assert plain.order[1] in (1, 2) and tied.order[1] == 1
+    assert fos_select(G[::-1, ::-1], c[::-1], float(y @ y), forced=(3,), max_terms=2, ties=1e-9).order[1] == 1

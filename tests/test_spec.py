@@ -29,6 +29,13 @@ def test_issue_examples_validate_with_resolved_defaults():
     assert validate_spec(json.loads(json.dumps(resolved))).resolved() == resolved  # resolved spec is a fixed point
 
 
+def test_resolved_spec_with_separate_sources_is_a_fixed_point():
+    raw = narx_spec(split={"train": 0.8, "validation": 0.2})
+    resolved = validate_spec(raw).resolved()
+    assert resolved["data"]["test"]["generator"] is None  # unset keys of the separate test source are dumped as null
+    assert validate_spec(json.loads(json.dumps(resolved))).resolved() == resolved
+
+
 def test_every_bundled_spec_validates():
     for path in sorted((ROOT / "specs").rglob("*.yaml")):
         load_spec(path)

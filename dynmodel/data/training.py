@@ -34,6 +34,16 @@ class TrainingData:
     input_names: list[str]
     output_names: list[str]
     sampling_time: float
+    #: physical output = model output * output_scale + output_offset (to convert user-given values)
+    output_offset: np.ndarray | None = None
+    output_scale: np.ndarray | None = None
+
+    def to_model_outputs(self, values: np.ndarray) -> np.ndarray:
+        """Physical output values (per output column) in model space."""
+        v = np.asarray(values, dtype=np.float64)
+        if self.output_offset is None or self.output_scale is None:
+            return v
+        return (v - self.output_offset) / self.output_scale
 
     @property
     def n_inputs(self) -> int:
@@ -77,4 +87,5 @@ def training_data(ds: Dataset, pre: Preprocessor) -> TrainingData:
                 y[a:min(b, end)] = np.nan
         series.append(Series(pre.inputs(rec.u)[:end], y))
     segments = {s: [(index[r], a, b) for r, a, b in ds.scored(s)] for s in fit_splits if ds.ranges.get(s)}
-    return TrainingData(series, segments, pre.model_input_names, list(pre.output_names), ds.sampling_time)
+    return TrainingData(series, segments, pre.model_input_names, list(pre.output_names), ds.sampling_time,
+                        np.asarray(pre.output_offset, dtype=np.float64), np.asarray(pre.output_scale, dtype=np.float64))

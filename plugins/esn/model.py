@@ -35,6 +35,7 @@ class EchoStateNetwork(Family):
     name = "esn"
     description = "echo state network, internal or external approach (thesis 5.2.3, 5.3.2)"
     Params = EsnParams
+    stability_hint = "use cost: mse_inf, the internal mode or a smaller spectral scale"
 
     params: EsnParams
 

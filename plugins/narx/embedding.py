@@ -1,0 +1,167 @@
+"""The embedding step (thesis 3.1.1) and the monomial pool (eq. 3.8 - 3.11).
+
+A *regressor* is one data column at one lag: an input ``u[t-k]`` (k >= 0) or a past output
+``y[t-k]`` (k >= 1), eq. 3.5 / 3.6. A *term* is a monomial of the regressors, stored as a row
+of exponents (eq. 3.10); the all-zero row is the constant. Terms are written as text the way
+the summary prints them: ``1``, ``u[t]``, ``y[t-2]^3``, ``y[t-1] * u[t-1]^2``.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+INPUT, OUTPUT = 0, 1
+DEFAULT_INPUT_LAGS = (0, 1, 2)
+DEFAULT_OUTPUT_LAGS = (1, 2)
+
+_FACTOR = re.compile(r"^(?P<name>.+?)\[\s*t\s*(?:-\s*(?P<lag>\d+)\s*)?\](?:\s*\^\s*(?P<pow>\d+))?$")
+
+
+@dataclass(frozen=True)
+class Regressor:
+    source: int  # INPUT or OUTPUT
+    channel: int  # column in the model inputs or outputs
+    lag: int
+    name: str  # the column's name
+
+    @property
+    def label(self) -> str:
+        return f"{self.name}[t]" if self.lag == 0 else f"{self.name}[t-{self.lag}]"
+
+
+@dataclass
+class Embedding:
+    """The regressors of a NARX model, inputs first, each column's lags ascending."""
+
+    regressors: list[Regressor]
+
+    @property
+    def size(self) -> int:
+        return len(self.regressors)
+
+    @property
+    def max_lag(self) -> int:
+        return max((r.lag for r in self.regressors), default=0)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(source, channel, lag) as int64 arrays, for the kernels and the model file."""
+        return (np.array([r.source for r in self.regressors], dtype=np.int64),
+                np.array([r.channel for r in self.regressors], dtype=np.int64),
+                np.array([r.lag for r in self.regressors], dtype=np.int64))
+
+    def matrix(self, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Regressor values (n, size) of one recording; values before its first sample are 0
+        (zero padding, 3.1.1; callers drop those rows when asked to)."""
+        n = u.shape[0]
+        X = np.zeros((n, self.size))
+        for j, r in enumerate(self.regressors):
+            src = u if r.source == INPUT else y
+            if r.lag < n:
+                X[r.lag:, j] = src[:n - r.lag, r.channel]
+        return X
+
+    def label_of(self, exponents: np.ndarray) -> str:
+        return term_label(exponents, [r.label for r in self.regressors])
+
+
+def _lag_error(name: str, what: str) -> ValueError:
+    return ValueError(f"lags.{name}: {what}")
+
+
+def build_embedding(lags: dict[str, list[int]] | None, input_names: list[str], output_names: list[str],
+                    extra: list[tuple[str, int]] = ()) -> Embedding:
+    """Regressors from ``{column: [lags]}`` (None: every input [0, 1, 2], every output [1, 2])
+    plus the (column, lag) pairs in ``extra`` (from explicit terms)."""
+    table: dict[str, set[int]]
+    if lags is None:
+        table = {n: set(DEFAULT_INPUT_LAGS) for n in input_names}
+        table.update({n: set(DEFAULT_OUTPUT_LAGS) for n in output_names})
+    else:
+        table = {n: set(v) for n, v in lags.items()}
+    for name, lag in extra:
+        table.setdefault(name, set()).add(lag)
+    known = list(input_names) + list(output_names)
+    for name, values in table.items():
+        if name not in known:
+            raise _lag_error(name, f"'{name}' is not a column of the data; the model inputs are {list(input_names)} "
+                                   f"and the outputs {list(output_names)}")
+        if name in output_names and 0 in values:
+            raise _lag_error(name, f"output '{name}' at lag 0 is the value being predicted; output lags start at 1")
+    regs = [Regressor(INPUT, c, lag, n) for c, n in enumerate(input_names) for lag in sorted(table.get(n, ()))]
+    regs += [Regressor(OUTPUT, c, lag, n) for c, n in enumerate(output_names) for lag in sorted(table.get(n, ()))]
+    if not regs:
+        raise ValueError("lags: the embedding is empty; give at least one lag, e.g. {u: [0, 1], y: [1]}")
+    return Embedding(regs)
+
+
+# ---------------------------------------------------------------- terms as text
+
+def parse_term(text: str) -> list[tuple[str, int, int]]:
+    """``'y[t-1]^2 * u[t]'`` -> [(name, lag, power), ...]; ``'1'`` -> [] (the constant)."""
+    s = str(text).strip()
+    if s == "1":
+        return []
+    factors = []
+    for part in s.split("*"):
+        m = _FACTOR.match(part.strip())
+        if not m:
+            raise ValueError(f"terms: cannot read '{text}'; write monomials such as 'u[t]', 'y[t-1]^2 * u[t-2]' or '1'")
+        power = int(m.group("pow") or 1)
+        if power < 1:
+            raise ValueError(f"terms: '{text}' has a zero power; leave that factor out")
+        factors.append((m.group("name").strip(), int(m.group("lag") or 0), power))
+    return factors
+
+
+def term_label(exponents: np.ndarray, labels: list[str]) -> str:
+    parts = [labels[j] + (f"^{int(p)}" if p > 1 else "") for j, p in enumerate(exponents) if p > 0]
+    return " * ".join(parts) if parts else "1"
+
+
+def exponents_of(terms: list[str], emb: Embedding) -> np.ndarray:
+    """Exponent rows (len(terms), emb.size) of textual terms; duplicates are refused."""
+    index = {(r.name, r.lag): j for j, r in enumerate(emb.regressors)}
+    rows = np.zeros((len(terms), emb.size), dtype=np.int64)
+    for i, text in enumerate(terms):
+        for name, lag, power in parse_term(text):
+            rows[i, index[(name, lag)]] += power
+    seen: dict[bytes, str] = {}
+    for i, text in enumerate(terms):
+        key = rows[i].tobytes()
+        if key in seen:
+            raise ValueError(f"terms: '{text}' repeats '{seen[key]}'")
+        seen[key] = text
+    return rows
+
+
+# ---------------------------------------------------------------- the pool
+
+def pool_size(n_regressors: int, degree: int, constant: bool) -> int:
+    """Number of monomials of total degree 1..degree in n variables, plus the constant."""
+    return math.comb(n_regressors + degree, degree) - (0 if constant else 1)
+
+
+def pool_exponents(n_regressors: int, degree: int, constant: bool) -> np.ndarray:
+    """Every monomial up to ``degree`` (eq. 3.10 / 3.11), by degree, constant first."""
+    rows = [np.zeros(n_regressors, dtype=np.int64)] if constant else []
+    for d in range(1, degree + 1):
+        for combo in itertools.combinations_with_replacement(range(n_regressors), d):
+            row = np.zeros(n_regressors, dtype=np.int64)
+            np.add.at(row, list(combo), 1)
+            rows.append(row)
+    return np.array(rows, dtype=np.int64).reshape(len(rows), n_regressors)
+
+
+def factor_lists(exponents: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sparse form of exponent rows for the kernels: term i has factors ptr[i]:ptr[i+1] of
+    regressor ``reg`` to power ``pw``."""
+    E = np.asarray(exponents, dtype=np.int64)
+    nz = E > 0
+    ptr = np.zeros(E.shape[0] + 1, dtype=np.int64)
+    ptr[1:] = np.cumsum(nz.sum(axis=1))
+    rows, cols = np.nonzero(nz)
+    return ptr, cols.astype(np.int64), E[rows, cols].astype(np.int64)

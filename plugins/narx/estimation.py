@@ -1,0 +1,182 @@
+"""Free-running estimation (cost ``mse_inf``, eq. 3.15) and free-run scoring of a split.
+
+The weights w minimise sum_k sum_t (y_t[k] - yhat_t[k](w))^2 / (N var(y[k])) over the training
+samples, where yhat is the free run of each recording from its start. The solver is scipy's
+nonlinear least squares (Levenberg-Marquardt or trust region) with the exact Jacobian from the
+compiled sensitivity recursion (:func:`kernels.free_run_jacobian`). If the starting model
+diverges in free run, the error-propagation scheme of thesis 6.3.2 is used: the fed-back signal
+is a mixture ``mix * y + (1 - mix) * yhat`` whose measured share ``mix`` drops step by step to 0,
+each step starting from the previous solution.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from dynmodel.data.training import TrainingData
+
+from . import kernels
+
+#: residual of a sample after a breakdown of the run (NaN), in units of the output's std
+_BROKEN = 1e3
+
+
+@dataclass
+class Structure:
+    """Everything the kernels need besides the weights and the data."""
+
+    src: np.ndarray
+    ch: np.ndarray
+    lag: np.ndarray
+    ptr: np.ndarray
+    reg: np.ndarray
+    pw: np.ndarray
+    out: np.ndarray
+    n_out: int
+    start: int  # first predicted sample of a run (the initial past is measured before it)
+    clip_lo: np.ndarray
+    clip_hi: np.ndarray
+
+    def mixture(self, mix) -> np.ndarray:
+        """The measured share of the fed-back signal, one value per output."""
+        return np.ascontiguousarray(np.broadcast_to(np.asarray(mix, dtype=np.float64), (self.n_out,)))
+
+    def run(self, u: np.ndarray, y: np.ndarray, w: np.ndarray, mix=0.0,
+            band: tuple[np.ndarray, np.ndarray] | None = None, clip=None):
+        lo, hi = band if band is not None else (np.full(self.n_out, -np.inf), np.full(self.n_out, np.inf))
+        clo, chi = clip if clip is not None else (self.clip_lo, self.clip_hi)
+        return kernels.free_run(u, y, self.src, self.ch, self.lag, self.ptr, self.reg, self.pw, self.out, w,
+                                self.n_out, self.start, self.mixture(mix), clo, chi, lo, hi)
+
+    def run_jacobian(self, u: np.ndarray, y: np.ndarray, w: np.ndarray, mix, clip):
+        inf = np.full(self.n_out, np.inf)
+        return kernels.free_run_jacobian(u, y, self.src, self.ch, self.lag, self.ptr, self.reg, self.pw, self.out,
+                                         w, self.n_out, self.start, self.mixture(mix), clip[0], clip[1], -inf, inf)
+
+
+def make_structure(emb, exponents: np.ndarray, term_output: np.ndarray, n_out: int, start: int,
+                   clip: tuple[np.ndarray, np.ndarray]) -> Structure:
+    from .embedding import factor_lists
+
+    src, ch, lag = emb.arrays()
+    ptr, reg, pw = factor_lists(exponents)
+    return Structure(src, ch, lag, ptr, reg, pw, np.asarray(term_output, dtype=np.int64), n_out, start,
+                     np.asarray(clip[0], dtype=np.float64), np.asarray(clip[1], dtype=np.float64))
+
+
+@dataclass
+class Scored:
+    """Per recording: the rows of a split that are scored (t >= start, target known)."""
+
+    rows: list[np.ndarray]
+    stop: list[int]  # run each recording up to here
+    var: np.ndarray  # per output, over the scored targets
+    n: int
+
+    @classmethod
+    def of(cls, data: TrainingData, split: str, start: int) -> "Scored":
+        rows: list[list[np.ndarray]] = [[] for _ in data.series]
+        for s, a, b in data.segments.get(split, []):
+            a = max(a, start)
+            if a < b:
+                t = np.arange(a, b)
+                rows[s].append(t[np.isfinite(data.series[s].y[a:b]).all(axis=1)])
+        rr = [np.concatenate(r) if r else np.zeros(0, dtype=np.int64) for r in rows]
+        stop = [int(r[-1]) + 1 if r.size else 0 for r in rr]
+        ys = [data.series[s].y[r] for s, r in enumerate(rr) if r.size]
+        Y = np.concatenate(ys) if ys else np.zeros((0, data.n_outputs))
+        var = np.maximum(np.var(Y, axis=0), 1e-300) if len(Y) else np.ones(data.n_outputs)
+        return cls(rr, stop, var, int(len(Y)))
+
+
+def split_error(st: Structure, data: TrainingData, scored: Scored, w: np.ndarray,
+                band: tuple[np.ndarray, np.ndarray]) -> float:
+    """Mean over outputs of the free-run NMSE (a fraction) on the scored rows; inf if a run diverges."""
+    sq = np.zeros(st.n_out)
+    for s, rows in enumerate(scored.rows):
+        if not rows.size:
+            continue
+        ser = data.series[s]
+        stop = scored.stop[s]
+        yhat, div = st.run(ser.u[:stop], ser.y[:stop], w, 0.0, band)
+        if div >= 0:
+            return np.inf
+        sq += np.sum((ser.y[rows] - yhat[rows]) ** 2, axis=0)
+    return float(np.mean(sq / scored.n / scored.var)) if scored.n else np.nan
+
+
+def diverges(st: Structure, data: TrainingData, scored: Scored, w: np.ndarray,
+             band: tuple[np.ndarray, np.ndarray], mix=0.0) -> bool:
+    """Whether a free run of any recording leaves the band before its last scored row."""
+    return any(st.run(data.series[s].u[:scored.stop[s]], data.series[s].y[:scored.stop[s]], w, mix, band)[1] >= 0
+               for s, rows in enumerate(scored.rows) if rows.size)
+
+
+@dataclass
+class FreeRunProblem:
+    """Residuals r(w) = (yhat_t - y_t) / sqrt(N var_k) of the (mixed) free run on training rows,
+    optionally with ridge rows sqrt(alpha_k / (N var_k)) w_j for the penalised terms."""
+
+    st: Structure
+    data: TrainingData
+    scored: Scored
+    clip: tuple[np.ndarray, np.ndarray]  # keeps residuals finite: the user's bounds or the divergence band
+    penalty: np.ndarray | None = None  # per term, sqrt of the scaled ridge factor (0: not penalised)
+    mix: float = 0.0
+    nfev: int = 0
+    njev: int = 0
+    scale: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.scale = 1.0 / np.sqrt(self.scored.n * self.scored.var)
+
+    def _series(self):
+        for s, rows in enumerate(self.scored.rows):
+            if rows.size:
+                ser = self.data.series[s]
+                stop = self.scored.stop[s]
+                yield rows, ser.u[:stop], ser.y[:stop]
+
+    def residuals(self, w: np.ndarray) -> np.ndarray:
+        self.nfev += 1
+        parts = []
+        for rows, u, y in self._series():
+            yhat, _ = self.st.run(u, y, w, self.mix, None, self.clip)
+            r = (yhat[rows] - y[rows]) * self.scale
+            parts.append(np.where(np.isfinite(r), r, _BROKEN).ravel())
+        if self.penalty is not None:
+            parts.append(self.penalty * w)
+        return np.concatenate(parts)
+
+    def jacobian(self, w: np.ndarray) -> np.ndarray:
+        self.njev += 1
+        parts = []
+        for rows, u, y in self._series():
+            _, J, _ = self.st.run_jacobian(u, y, w, self.mix, self.clip)
+            parts.append((J[rows] * self.scale[None, :, None]).reshape(-1, w.size))
+        if self.penalty is not None:
+            parts.append(np.diag(self.penalty))
+        return np.concatenate(parts)
+
+    def cost(self, w: np.ndarray) -> float:
+        r = self.residuals(w)
+        self.nfev -= 1
+        return float(r @ r)
+
+
+def refine(problem: FreeRunProblem, w0: np.ndarray, mixes: list[float], solver: str, max_nfev: int, tol: float,
+           after_step: Callable[[float, np.ndarray, object], None] | None = None) -> np.ndarray:
+    """Solve the free-running least-squares problem at each mixture in turn (the last one is 0)."""
+    w = np.asarray(w0, dtype=np.float64).copy()
+    for mix in mixes:
+        problem.mix = mix
+        res = least_squares(problem.residuals, w, jac=problem.jacobian, method=solver, x_scale="jac",
+                            ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev)
+        if np.all(np.isfinite(res.x)) and res.cost <= 0.5 * problem.cost(w) * (1 + 1e-12):
+            w = res.x.copy()
+        if after_step is not None:
+            after_step(mix, w, res)
+    return w

@@ -1,0 +1,340 @@
+"""The `narx` family: polynomial NARX models (thesis 3.1, 3.2, A.2.2, 6.3.2).
+
+Embedding (3.1.1): regressors are inputs at lags >= 0 and past outputs at lags >= 1. Pool: every
+monomial of the regressors up to ``degree`` plus a constant (eq. 3.10). Structure: Fast
+Orthogonal Search on the pool's Gram matrix (A.2.2), stopped by ``max_terms``, ``threshold`` or
+the first rise of the one-step validation error (A.3); one polynomial per output, each offered
+every output's past. Weights: least squares, FOS's recursion (A.14 / A.15) or ridge (6.3.2).
+``cost: mse_inf`` re-estimates the weights on the free-running error (eq. 3.15). The free run
+can be bounded (eq. 6.25) and reports the sample where it diverges.
+"""
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+
+from dynmodel.data.training import TrainingData
+from dynmodel.family import Family, Progress, Simulation, no_progress
+
+from . import pool as pool_mod
+from .embedding import Embedding, Regressor, build_embedding, exponents_of, parse_term, term_label
+from .estimation import FreeRunProblem, Scored, Structure, diverges, make_structure, refine, split_error
+from .onestep import fixed_weights, fos_structure, make_pool, ridge_candidates
+from .params import NarxFamilyParams
+from .selection import free_run_selection
+
+
+class Narx(Family):
+    name = "narx"
+    description = "polynomial NARX model: FOS structure selection, free-running estimation (thesis 3.1, 3.2, A.2.2, 6.3.2)"
+    Params = NarxFamilyParams
+    stability_hint = ("use cost: mse_inf (free-running estimation), bounds: 0.1 (clip the output, eq. 6.25), ridge: auto, "
+                      "or a lower degree")
+
+    params: NarxFamilyParams
+
+    # ------------------------------------------------------------------ structure
+    @property
+    def warmup(self) -> int:
+        """``initial: measured``: the first L samples (L = the largest lag) are measured."""
+        if self.params.initial == "zeros":
+            return 0
+        emb = getattr(self, "embedding_", None)
+        return emb.max_lag if emb is not None else 0
+
+    def _structure(self) -> Structure:
+        return make_structure(self.embedding_, self.exponents_, self.term_output_, self.n_outputs_, self.warmup,
+                              (self.clip_lo_, self.clip_hi_))
+
+    @property
+    def terms_(self) -> list[list[str]]:
+        """Per output: the selected terms as text."""
+        labels = [r.label for r in self.embedding_.regressors]
+        return [[term_label(e, labels) for e in self.exponents_[self.term_output_ == k]]
+                for k in range(self.n_outputs_)]
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, data: TrainingData, cost: str = "mse1", rng: np.random.Generator | None = None,
+            progress: Progress = no_progress) -> "Narx":
+        p = self.params
+        self.n_inputs_, self.n_outputs_ = data.n_inputs, data.n_outputs
+        self.output_names_ = list(data.output_names)
+        self.ridge_: dict[str, Any] | None = None
+        fixed = self._fixed_terms(data)
+        extra = [(name, lag) for terms in (fixed or {}).values() for t in terms for name, lag, _ in parse_term(t)]
+        self._check_names(extra, data)
+        self.embedding_ = build_embedding(p.lag_table() if (p.lags is not None or not fixed) else {},
+                                          data.input_names, data.output_names, extra)
+        emb = self.embedding_
+        first = emb.max_lag if p.start == "drop" else 0
+        mats = pool_mod.regressor_matrices(data, emb)
+        train = pool_mod.patterns(data, mats, "train", first)
+        if train.n <= emb.size:
+            raise ValueError(f"only {train.n} training patterns with known regressors (largest lag {emb.max_lag}); "
+                             "provide more training data or use shorter lags")
+        val = pool_mod.patterns(data, mats, "validation", first) if data.has("validation") else None
+        if val is not None and val.n == 0:
+            val = None
+        self._bounds = data.output_bounds()
+        self._set_clip(data, train.Y)
+
+        self.refinement_: list[dict[str, Any]] = []
+        if p.selection == "free_run" and fixed is None:
+            if cost != "mse_inf":
+                raise ValueError("selection: free_run estimates the weights on the free-running error; use it with "
+                                 "cost: mse_inf (or selection: one_step)")
+            if p.ridge is not None:
+                raise ValueError("ridge applies to least-squares weights; selection: free_run estimates them on the "
+                                 "free-running error, so leave ridge out (or use selection: one_step)")
+            self._check_initial(data)
+            exps, outs, weights, self.selection_ = free_run_selection(
+                emb, make_pool(emb.size, p), data, self.n_outputs_, self.warmup, (self.clip_lo_, self.clip_hi_), self._bounds, p, progress)
+            self.exponents_, self.term_output_, self.weights_ = exps, outs, weights
+            return self
+        if fixed is not None:
+            exps, outs = self._fixed_structure(fixed, data.output_names)
+            weights = fixed_weights(train, exps, outs, self.n_outputs_)
+            self.selection_ = {"method": "fixed", "terms": [int(np.sum(outs == k)) for k in range(self.n_outputs_)]}
+        else:
+            exps, outs, weights, self.selection_ = fos_structure(
+                make_pool(emb.size, p), train, val, p, self.output_names_, self._stability_check(data), progress)
+        self.exponents_, self.term_output_ = exps, outs
+        self.weights_ = weights
+        if p.ridge is not None:
+            self._ridge(data, train, progress)
+
+        if cost == "mse_inf":
+            self._refine(data, progress)
+        return self
+
+    def _check_names(self, extra: list[tuple[str, int]], data: TrainingData) -> None:
+        known = set(data.input_names) | set(data.output_names)
+        for name, _ in extra:
+            if name not in known:
+                raise ValueError(f"terms: '{name}' is not a column of the data; the model inputs are "
+                                 f"{list(data.input_names)} and the outputs {list(data.output_names)}")
+
+    def _fixed_terms(self, data: TrainingData) -> dict[str, list[str]] | None:
+        t = self.params.terms
+        if t is None:
+            return None
+        if isinstance(t, list):
+            return {name: list(t) for name in data.output_names}
+        unknown = [k for k in t if k not in data.output_names]
+        if unknown:
+            raise ValueError(f"terms: '{unknown[0]}' is not an output; the outputs are {list(data.output_names)}")
+        missing = [k for k in data.output_names if k not in t]
+        if missing:
+            raise ValueError(f"terms: no terms for output '{missing[0]}'; give a list for every output")
+        return {k: list(v) for k, v in t.items()}
+
+    def _fixed_structure(self, fixed: dict[str, list[str]], outputs: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        rows, outs = [], []
+        for k, name in enumerate(outputs):
+            if not fixed[name]:
+                raise ValueError(f"terms: the list for output '{name}' is empty")
+            E = exponents_of(fixed[name], self.embedding_)
+            rows.append(E)
+            outs += [k] * len(E)
+        return np.vstack(rows), np.array(outs, dtype=np.int64)
+
+    def _stability_check(self, data: TrainingData):
+        """diverges(k, exponents, weights): does output k's polynomial, fed back its own prediction
+        (the other outputs measured), leave the divergence band on the training or validation data?
+        None when the free run cannot start (measured initial values inside the test split)."""
+        try:
+            self._check_initial(data)
+        except ValueError:
+            return None
+        start = self.warmup
+        splits = [Scored.of(data, s, start) for s in ("train", "validation") if data.has(s)]
+
+        def check(k: int, exps: np.ndarray, w: np.ndarray) -> bool:
+            st = make_structure(self.embedding_, exps, np.full(len(exps), k, dtype=np.int64), self.n_outputs_, start,
+                                (self.clip_lo_, self.clip_hi_))
+            mix = np.ones(self.n_outputs_)
+            mix[k] = 0.0
+            return any(diverges(st, data, sc, w, self._bounds, mix) for sc in splits)
+
+        return check
+
+    def _set_clip(self, data: TrainingData, Y: np.ndarray) -> None:
+        """Output bounds [L, U] of eq. 6.25 in model space: the training range widened by ``bounds``
+        x its width, or the given values converted from the data's units."""
+        b = self.params.bounds
+        self.clip_lo_ = np.full(self.n_outputs_, -np.inf)
+        self.clip_hi_ = np.full(self.n_outputs_, np.inf)
+        if b is None:
+            return
+        if isinstance(b, dict):
+            unknown = [k for k in b if k not in self.output_names_]
+            if unknown:
+                raise ValueError(f"bounds: '{unknown[0]}' is not an output; the outputs are {self.output_names_}")
+            lo = np.array([-np.inf if b.get(n, (None, None))[0] is None else b[n][0] for n in self.output_names_])
+            hi = np.array([np.inf if b.get(n, (None, None))[1] is None else b[n][1] for n in self.output_names_])
+            self.clip_lo_, self.clip_hi_ = data.to_model_outputs(lo), data.to_model_outputs(hi)
+            return
+        lo, hi = Y.min(axis=0), Y.max(axis=0)
+        self.clip_lo_ = lo - b * (hi - lo)
+        self.clip_hi_ = hi + b * (hi - lo)
+
+    # ------------------------------------------------------------------ ridge (6.3.2)
+    def _ridge(self, data: TrainingData, train: pool_mod.Patterns, progress: Progress) -> None:
+        """Ridge weights for the selected terms. ``auto``: the factor whose free run has the lowest
+        validation error (thesis 6.3.2: ridge as a stabilizer, its factor tuned on validation)."""
+        vectors, factors = ridge_candidates(train, self.exponents_, self.term_output_, self.weights_,
+                                            self.params.ridge)
+        if len(vectors) == 1:
+            self.weights_, self.ridge_ = vectors[0], {"alpha": factors[0]}
+            return
+        if not data.has("validation"):
+            raise ValueError("ridge: auto chooses the factor on the validation split, and there is none; "
+                             "give a number or add a validation split")
+        self._check_initial(data)
+        st = self._structure()
+        scored = Scored.of(data, "validation", st.start)
+        errors = []
+        for i, v in enumerate(vectors):
+            errors.append(split_error(st, data, scored, v, self._bounds))
+            progress("ridge", (i + 1) / len(vectors), f"factor {i + 1}/{len(vectors)}")
+        if np.isfinite(errors).any():
+            best = int(np.argmin(errors))
+        else:
+            best = len(vectors) - 1
+            warnings.warn("ridge: the free run diverges on the validation split for every factor tried; keeping the "
+                          "largest", stacklevel=2)
+        self.weights_ = vectors[best]
+        self.ridge_ = {"alpha": factors[best],
+                       "validation_nmse": [None if not np.isfinite(e) else 100 * e for e in errors]}
+
+    # ------------------------------------------------------------------ mse_inf (3.15, 6.3.2)
+    def _refine(self, data: TrainingData, progress: Progress) -> None:
+        r = self.params.refinement
+        st = self._structure()
+        scored = Scored.of(data, "train", st.start)
+        if scored.n <= self.weights_.size:
+            raise ValueError(f"cost mse_inf: only {scored.n} scored training samples for {self.weights_.size} weights")
+        self._check_initial(data)
+        val = Scored.of(data, "validation", st.start) if data.has("validation") else None
+        finite_clip = (np.maximum(self.clip_lo_, self._bounds[0]), np.minimum(self.clip_hi_, self._bounds[1]))
+        penalty = None
+        if getattr(self, "ridge_", None) is not None:
+            const = ~self.exponents_.any(axis=1)
+            alpha = np.asarray(self.ridge_["alpha"])[self.term_output_]
+            penalty = np.where(const, 0.0, np.sqrt(alpha / (scored.n * scored.var[self.term_output_])))
+        problem = FreeRunProblem(st, data, scored, finite_clip, penalty)
+        unstable = diverges(st, data, scored, self.weights_, self._bounds)
+        mixes = [1.0 - i / r.ramp for i in range(1, r.ramp + 1)] if unstable else [0.0]
+
+        def record(mix: float, w: np.ndarray, res) -> None:
+            entry = {"mix": float(mix), "train_cost": float(2 * res.cost), "nfev": int(res.nfev),
+                     "status": int(res.status)}
+            if val is not None and mix == 0.0:
+                e = split_error(st, data, val, w, self._bounds)
+                entry["validation_nmse"] = None if not np.isfinite(e) else 100 * e
+            self.refinement_.append(entry)
+            progress("mse_inf", None, f"mix {mix:.2f}: cost {2 * res.cost:.4g} after {res.nfev} runs")
+
+        start = {"mix": 1.0 if unstable else 0.0, "train_cost": problem.cost(self.weights_) if not unstable else None,
+                 "diverged": bool(unstable)}
+        if val is not None:
+            e = split_error(st, data, val, self.weights_, self._bounds)
+            start["validation_nmse"] = None if not np.isfinite(e) else 100 * e
+        self.refinement_.append(start)
+        self.weights_ = refine(problem, self.weights_, mixes, r.solver, r.max_nfev, r.tol, record)
+        if diverges(st, data, scored, self.weights_, self._bounds):
+            warnings.warn("cost mse_inf: the re-estimated model still leaves the divergence band in free run on the "
+                          "training data; try bounds, ridge, a lower degree or fewer terms", stacklevel=2)
+
+    def _check_initial(self, data: TrainingData) -> None:
+        L = self.warmup
+        for i, s in enumerate(data.series):
+            if L and not np.isfinite(s.y[:L]).all():
+                raise ValueError(f"the free run of recording {i + 1} starts from its first {L} measured outputs, which lie "
+                                 "in the test split; use initial: zeros or put the test range later")
+
+    # ------------------------------------------------------------------ prediction
+    def _initial(self, y_measured: np.ndarray | None, n: int) -> np.ndarray:
+        L = min(self.warmup, n)
+        if L == 0:
+            return np.zeros((0, self.n_outputs_))
+        have = 0 if y_measured is None else len(y_measured)
+        Y = None if y_measured is None else np.asarray(y_measured, dtype=np.float64).reshape(have, -1)
+        if Y is None or have < L or not np.isfinite(Y[:L]).all():
+            raise ValueError(f"this NARX model starts its free run from the first {L} measured output samples "
+                             f"(initial: measured); got {have if Y is None else int(np.isfinite(Y[:L]).all(axis=1).sum())} "
+                             "finite ones")
+        return np.ascontiguousarray(Y[:L])
+
+    def simulate(self, u: np.ndarray, y_measured: np.ndarray | None = None,
+                 bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Simulation:
+        self.check_fitted()
+        u = np.ascontiguousarray(u, dtype=np.float64)
+        Y = self._initial(y_measured, u.shape[0])
+        yhat, div = self._structure().run(u, Y, self.weights_, 0.0, bounds)
+        return Simulation(yhat, None if div < 0 else int(div))
+
+    def predict_one_step(self, u: np.ndarray, y_measured: np.ndarray) -> np.ndarray | None:
+        """One-step-ahead predictions: every fed-back value is the measured one (mix = 1)."""
+        self.check_fitted()
+        u = np.ascontiguousarray(u, dtype=np.float64)
+        Y = np.ascontiguousarray(y_measured, dtype=np.float64).reshape(u.shape[0], -1)
+        self._initial(Y, u.shape[0])
+        return self._structure().run(u, Y, self.weights_, 1.0)[0]
+
+    # ------------------------------------------------------------------ persistence
+    def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        src, ch, lag = self.embedding_.arrays()
+        arrays = {"exponents": self.exponents_, "term_output": self.term_output_, "weights": self.weights_,
+                  "regressor_source": src, "regressor_channel": ch, "regressor_lag": lag,
+                  "clip_low": self.clip_lo_, "clip_high": self.clip_hi_}
+        attrs = {"regressor_names": [r.name for r in self.embedding_.regressors], "terms": self.terms_,
+                 "n_inputs": self.n_inputs_, "n_outputs": self.n_outputs_, "output_names": self.output_names_,
+                 "selection": self.selection_, "refinement": self.refinement_,
+                 "ridge": getattr(self, "ridge_", None)}
+        return arrays, attrs
+
+    @classmethod
+    def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> "Narx":
+        self = cls(**params)
+        names = list(attrs["regressor_names"])
+        src, ch, lag = (np.asarray(arrays[k], dtype=np.int64) for k in
+                        ("regressor_source", "regressor_channel", "regressor_lag"))
+        self.embedding_ = Embedding([Regressor(int(s), int(c), int(l), n) for s, c, l, n in zip(src, ch, lag, names)])
+        self.exponents_ = np.asarray(arrays["exponents"], dtype=np.int64).reshape(-1, len(names))
+        self.term_output_ = np.asarray(arrays["term_output"], dtype=np.int64)
+        self.weights_ = np.asarray(arrays["weights"], dtype=np.float64)
+        self.clip_lo_ = np.asarray(arrays["clip_low"], dtype=np.float64)
+        self.clip_hi_ = np.asarray(arrays["clip_high"], dtype=np.float64)
+        self.n_inputs_, self.n_outputs_ = int(attrs["n_inputs"]), int(attrs["n_outputs"])
+        self.output_names_ = list(attrs["output_names"])
+        self.selection_ = dict(attrs.get("selection") or {})
+        self.refinement_ = list(attrs.get("refinement") or [])
+        if attrs.get("ridge"):
+            self.ridge_ = dict(attrs["ridge"])
+        return self
+
+    def summary(self) -> dict[str, Any]:
+        info: dict[str, Any] = {"regressors": [r.label for r in self.embedding_.regressors],
+                                "selection": self.selection_.get("method")}
+        if "pool" in self.selection_:
+            info["pool"] = self.selection_["pool"]
+        for k, name in enumerate(self.output_names_):
+            w = self.weights_[self.term_output_ == k]
+            info[f"model {name}"] = " + ".join(f"{wi:.6g} {t}" if t != "1" else f"{wi:.6g}"
+                                              for wi, t in zip(w, self.terms_[k])).replace("+ -", "- ")
+        info["warmup"] = self.warmup
+        if np.isfinite(self.clip_lo_).any():
+            info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(self.clip_lo_, self.clip_hi_)]
+        if getattr(self, "ridge_", None):
+            info["ridge factor"] = self.ridge_["alpha"]
+        if self.refinement_:
+            last = self.refinement_[-1]
+            info["mse_inf solves"] = len(self.refinement_) - 1
+            if self.refinement_[0].get("diverged"):
+                info["mse_inf error propagation"] = "the least-squares model diverged; mixture ramped to pure prediction"
+            if last.get("validation_nmse") is not None:
+                info["mse_inf validation NMSE %"] = round(float(last["validation_nmse"]), 6)
+        return info

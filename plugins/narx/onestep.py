@@ -1,0 +1,113 @@
+"""One-step estimation (MSE_1, eq. 3.14): the pool, FOS structure selection and the weights.
+
+* :func:`make_pool` - every monomial up to the degree (eq. 3.10 / 3.11), refused above ``max_pool``.
+* :func:`fos_structure` - Fast Orthogonal Search per output on the pool's Gram matrix (A.2.2),
+  stopped by ``max_terms``, ``threshold`` or the rise of the one-step validation error (A.3);
+  optionally shortened until the polynomial's free run stays within the divergence band (3.1.4).
+* :func:`fixed_weights` - least squares for a given structure.
+* :func:`ridge_candidates` - ridge weights of the selected terms for one factor or a grid (6.3.2).
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from dynmodel import regression
+from dynmodel.family import Progress
+
+from . import pool as pool_mod
+from .embedding import pool_exponents, pool_size
+from .params import NarxFamilyParams
+
+#: stability(k, exponents, weights) -> True when output k's polynomial diverges in free run
+StabilityCheck = Callable[[int, np.ndarray, np.ndarray], bool]
+
+
+def make_pool(n_regressors: int, p: NarxFamilyParams) -> np.ndarray:
+    K = pool_size(n_regressors, p.degree, p.constant)
+    if K > p.max_pool:
+        raise ValueError(f"the pool would hold {K} monomials ({n_regressors} regressors up to degree {p.degree}), more "
+                         f"than max_pool = {p.max_pool}; lower the degree, use fewer lags, or raise max_pool")
+    return pool_exponents(n_regressors, p.degree, p.constant)
+
+
+def fos_structure(E: np.ndarray, train: pool_mod.Patterns, val: pool_mod.Patterns | None, p: NarxFamilyParams,
+                  output_names: list[str], stability: StabilityCheck | None, progress: Progress):
+    """FOS per output on the shared Gram matrix; returns (exponents, term outputs, weights, info)."""
+    progress("pool", None, f"Gram matrix of {E.shape[0]} monomials on {train.n} patterns")
+    G, C = pool_mod.gram(train.X, train.Y, E)
+    use_val = val is not None and p.patience is not None
+    if not use_val and p.max_terms is None and p.threshold is None:
+        raise ValueError("FOS needs a stopping rule: a validation split (data.split.validation, used with patience), "
+                         "max_terms or threshold")
+    lazy = pool_mod.LazyColumns(val.X, E) if use_val else None
+    forced = (0,) if p.constant else ()
+    rows, outs, weights, info = [], [], [], []
+    for k, name in enumerate(output_names):
+        y = train.Y[:, k]
+        path = regression.fos_select(G, C[:, k], float(y @ y), forced=forced, max_terms=p.max_terms,
+                                     threshold=p.threshold, Pv=lazy, yv=val.Y[:, k] if use_val else None,
+                                     patience=p.patience or 1)
+        best = path.best
+        if best == 0:
+            raise ValueError(f"FOS selected no term for output '{name}'; lower the threshold")
+        dropped = 0
+        if p.drop_unstable and stability is not None:
+            while best > 1 and stability(k, E[path.order[:best]], path.coef_path[best - 1]):
+                best -= 1
+                dropped += 1
+        kept = path.order[:best]
+        if p.weights == "recursion":
+            w = path.coef_path[best - 1]
+        else:
+            w = regression.lstsq(pool_mod.evaluate(train.X, E[kept]), y, fit_intercept=False).coef[:, 0]
+        rows.append(E[kept])
+        outs += [k] * len(kept)
+        weights.append(w)
+        info.append({"order": kept.tolist(),
+                     "error_reduction": (path.error_reduction[:best] / max(float(y @ y), 1e-300)).tolist(),
+                     "validation_mse": None if path.validation_error is None else path.validation_error.tolist(),
+                     "dropped_for_stability": dropped})
+        progress("fos", (k + 1) / len(output_names), f"output {name}: {len(kept)} terms")
+    selection: dict[str, Any] = {"method": "fos", "pool": int(E.shape[0]), "terms": [len(r) for r in rows],
+                                 "path": info}
+    return np.vstack(rows), np.array(outs, dtype=np.int64), np.concatenate(weights), selection
+
+
+def fixed_weights(train: pool_mod.Patterns, exps: np.ndarray, outs: np.ndarray, n_out: int) -> np.ndarray:
+    """Least-squares weights (SVD, A.2.1) of a given structure."""
+    w = np.zeros(len(outs))
+    for k in range(n_out):
+        idx = np.flatnonzero(outs == k)
+        F = pool_mod.evaluate(train.X, exps[idx])
+        w[idx] = regression.lstsq(F, train.Y[:, k], fit_intercept=False).coef[:, 0]
+    return w
+
+
+def ridge_candidates(train: pool_mod.Patterns, exps: np.ndarray, outs: np.ndarray, w: np.ndarray,
+                     ridge: float | str) -> tuple[list[np.ndarray], list[list[float]]]:
+    """Ridge weights of the selected terms (the constant is not penalised) for the factor ``ridge``,
+    or for each of 29 factors over [1e-14, 1] x the largest squared singular value (``'auto'``,
+    the same grid for every output by position). Returns the weight vectors and, per vector,
+    the factor of each output."""
+    const = ~exps.any(axis=1)
+    per_output = []
+    for k in range(int(outs.max()) + 1 if len(outs) else 0):
+        idx = np.flatnonzero(outs == k)
+        has_const = bool(const[idx].any())
+        cols = idx[~const[idx]]
+        F = pool_mod.evaluate(train.X, exps[cols])
+        alphas = None if ridge == "auto" else [float(ridge)]
+        per_output.append((idx, cols, has_const, regression.ridge_path(F, train.Y[:, k], alphas, fit_intercept=has_const)))
+    n_alpha = len(per_output[0][3])
+    vectors, factors = [], []
+    for i in range(n_alpha):
+        v = w.copy()
+        for idx, cols, has_const, fits in per_output:
+            v[cols] = fits[i].coef[:, 0]
+            if has_const:
+                v[idx[const[idx]]] = fits[i].intercept[0]
+        vectors.append(v)
+        factors.append([fits[i].info["alpha"] for *_, fits in per_output])
+    return vectors, factors

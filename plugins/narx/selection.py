@@ -1,0 +1,170 @@
+"""Structure selection on the free-running error (``selection: free_run``).
+
+Thesis 3.1.4 / 3.2.5: FOS scores every candidate by its one-step error reduction, which noise in
+the fed-back outputs biases, and a term's worth in a *free* run depends on the other terms
+(fig. 3.5), so MSE_inf admits no exact one-by-one selection. This module selects by the
+linearised free-running error instead. Around the current model (weights w, free run yhat) a
+candidate monomial c added with a small weight v changes the free run by v * s_c, where s_c is
+its forward sensitivity on the free-run trajectory (:func:`kernels.candidate_sensitivities`).
+The Gauss-Newton error reduction of adding c, with the current weights free to adjust, is
+FOS's Q of candidate c on the target r = y - yhat after the current terms' sensitivity columns
+(= the Jacobian) are forced in: so each step is one call of :func:`regression.fos_select` on the
+Gram matrix of the sensitivity columns. The chosen term enters with weight 0, all weights are
+re-estimated on the free-running error (nonlinear least squares), and the loop stops at
+``max_terms``, at ``threshold``, or when the free-running validation error has not reached a
+new low for ``patience`` terms (A.3); the best model on validation is kept.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dynmodel import regression
+from dynmodel.data.training import TrainingData
+from dynmodel.family import Progress
+
+from . import kernels
+from .embedding import OUTPUT, Embedding, factor_lists
+from .estimation import FreeRunProblem, Scored, make_structure, refine, split_error
+from .params import NarxFamilyParams
+
+_ROWS = 4096  # sensitivity rows per chunk
+
+
+@dataclass
+class Candidates:
+    exponents: np.ndarray  # (C, n_reg)
+    output: np.ndarray  # (C,)
+
+
+def _sensitivity_gram(emb: Embedding, st, data: TrainingData, scored: Scored, w: np.ndarray,
+                      cand: Candidates, first: int, m: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """The parts of the Gram matrix FOS reads, the correlations with the scaled residual, and the
+    scaled target energy y'y of the candidates' free-run sensitivity columns, over the scored
+    training rows at or after ``first``.
+
+    Candidates 0 .. m-1 are the current terms, forced into the selection; choosing one more term
+    then reads only the diagonal and the first m columns of the Gram matrix (A.2.2: step m needs
+    <g_i|g_i> and <g_i|g_{i_k}> of the selected terms), so only those are computed (N C (m + 1)
+    products instead of N C^2 / 2); the other entries are 0."""
+    src, ch, lag = emb.arrays()
+    fed = (src == OUTPUT)
+    ptr, reg, pw = factor_lists(cand.exponents)
+    n_out = st.n_out
+    scale = 1.0 / np.sqrt(scored.n * scored.var)
+    C = cand.exponents.shape[0]
+    cols = np.zeros((C, m))
+    diag = np.zeros(C)
+    c = np.zeros(C)
+    yy = 0.0
+    P = max(1, int(lag[fed].max()) if fed.any() else 1)
+    finite = np.isfinite(st.clip_lo) | np.isfinite(st.clip_hi)
+    for s, rows in enumerate(scored.rows):
+        if not rows.size:
+            continue
+        ser = data.series[s]
+        stop = scored.stop[s]
+        u = ser.u[:stop]
+        yhat, _ = st.run(u, ser.y[:stop], w)
+        live = np.ones(yhat.shape, dtype=np.bool_)
+        if finite.any():
+            live = ~((yhat == st.clip_lo) | (yhat == st.clip_hi))
+        X = emb.matrix(u, yhat)
+        D = kernels.model_gradient(X, st.ptr, st.reg, st.pw, st.out, w, n_out, fed)
+        use = np.zeros(stop, dtype=np.bool_)
+        use[rows[rows >= first]] = True
+        resid = (ser.y[:stop] - yhat) * scale
+        prev = np.zeros((P, n_out, C))
+        for t0 in range(0, stop, _ROWS):
+            t1 = min(stop, t0 + _ROWS)
+            S = kernels.candidate_sensitivities(X, D, ch, lag, fed, live, ptr, reg, pw, cand.output,
+                                                st.start, t0, t1, prev)
+            keep = use[t0:t1]
+            if keep.any():
+                A = np.ascontiguousarray((S[keep] * scale[None, :, None]).reshape(-1, C))
+                cols += A.T @ A[:, :m]
+                diag += np.einsum("ij,ij->j", A, A)
+                r = resid[t0:t1][keep].ravel()
+                c += A.T @ r
+                yy += float(np.sum((ser.y[t0:t1][keep] * scale) ** 2))
+            tail = np.concatenate([prev, S])[-P:]
+            prev = np.ascontiguousarray(tail)
+    G = np.zeros((C, C))
+    G[:, :m] = cols
+    G[:m, :] = cols.T
+    G[np.arange(C), np.arange(C)] = diag
+    return G, c, yy
+
+
+def free_run_selection(emb: Embedding, pool: np.ndarray, data: TrainingData, n_out: int, start: int,
+                       clip: tuple[np.ndarray, np.ndarray], band: tuple[np.ndarray, np.ndarray],
+                       params: NarxFamilyParams, progress: Progress) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    """Grow the model term by term on the linearised free-running error (module docstring)."""
+    p = params
+    r = p.refinement
+    scored = Scored.of(data, "train", start)
+    val = Scored.of(data, "validation", start) if data.has("validation") else None
+    use_val = val is not None and val.n > 0 and p.patience is not None
+    if not use_val and p.max_terms is None and p.threshold is None:
+        raise ValueError("selection: free_run needs a stopping rule: a validation split (used with patience), "
+                         "max_terms or threshold")
+    const = ~pool.any(axis=1)
+    if p.constant:
+        exps = np.repeat(pool[const][:1], n_out, axis=0)
+        outs = np.arange(n_out, dtype=np.int64)
+        w = np.array([np.mean(np.concatenate([data.series[s].y[rr, k] for s, rr in enumerate(scored.rows)]))
+                      for k in range(n_out)])
+    else:
+        exps = np.zeros((0, emb.size), dtype=np.int64)
+        outs = np.zeros(0, dtype=np.int64)
+        w = np.zeros(0)
+    limit = p.max_terms if p.max_terms is not None else pool.shape[0]
+    first = start + emb.max_lag  # scored rows whose every regressor comes from the free run itself
+    finite_clip = (np.maximum(clip[0], band[0]), np.minimum(clip[1], band[1]))
+    history: list[dict[str, Any]] = [{"added": "1" if p.constant else None, "terms": int(len(w))}]
+    best = None
+    best_err, since_best = np.inf, 0
+    while True:
+        st = make_structure(emb, exps, outs, n_out, start, clip)
+        if use_val:
+            err = split_error(st, data, val, w, band)
+            history[-1]["validation_nmse"] = None if not np.isfinite(err) else 100 * err
+            if err < best_err * (1 - 1e-12):
+                best, best_err, since_best = (exps.copy(), outs.copy(), w.copy()), err, 0
+            else:
+                since_best += 1
+                if since_best >= p.patience:
+                    break
+        else:
+            best = (exps.copy(), outs.copy(), w.copy())
+        counts = np.bincount(outs, minlength=n_out)
+        taken = {(int(o), e.tobytes()) for e, o in zip(exps, outs)}
+        new = [(e, k) for k in range(n_out) if counts[k] < limit for e in pool if (k, e.tobytes()) not in taken]
+        if not new:
+            break
+        cand = Candidates(np.vstack([exps] + [e[None] for e, _ in new]),
+                          np.concatenate([outs, np.array([k for _, k in new], dtype=np.int64)]))
+        m = len(w)
+        G, c, yy = _sensitivity_gram(emb, st, data, scored, w, cand, first, m)
+        path = regression.fos_select(G, c, yy, forced=tuple(range(m)), max_terms=m + 1, threshold=p.threshold,
+                                     ties=1e-9)
+        if len(path.order) <= m:
+            break
+        j = int(path.order[m])
+        order = np.argsort(np.append(outs, cand.output[j]), kind="stable")
+        exps = np.vstack([exps, cand.exponents[j][None]])[order]
+        outs = np.append(outs, cand.output[j])[order]
+        w = np.append(w, 0.0)[order]
+        st = make_structure(emb, exps, outs, n_out, start, clip)
+        w = refine(FreeRunProblem(st, data, scored, finite_clip), w, [0.0], r.solver, r.max_nfev, r.tol)
+        label = emb.label_of(cand.exponents[j])
+        history.append({"added": label if n_out == 1 else f"{label} (output {int(cand.output[j]) + 1})",
+                        "error_reduction": float(path.error_reduction[m] / max(yy, 1e-300)), "terms": int(len(w))})
+        progress("select", None, f"{len(w)} terms: + {label}")
+    assert best is not None
+    exps, outs, w = best
+    info = {"method": "free_run", "pool": int(pool.shape[0]),
+            "terms": [int(np.sum(outs == k)) for k in range(n_out)], "path": history}
+    return exps, outs, w, info
