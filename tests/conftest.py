@@ -1,6 +1,14 @@
 """Shared helpers: in-process CLI runs, small generated data files, spec building."""
 from __future__ import annotations
 
+import os
+
+# The tests' linear algebra is on small matrices, where threaded BLAS only adds contention (and
+# run-to-run timing noise on shared machines); results are also independent of the thread count.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
 from pathlib import Path
 from typing import Any
 
