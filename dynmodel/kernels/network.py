@@ -124,3 +124,46 @@ def step_batch(indptr, indices, data, B, c0, a, g, X, V, out):
     for r in range(X.shape[0]):
         _pre(indptr, indices, data, B, c0, X[r], V[r], z)
         _post(a, g, X[r], z, out[r])
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def tangent_batch(indptr, indices, data, B, c0, a, g, X, V, E, out, Eout):
+    """One step of state and tangent vectors for many replicas (conditional Lyapunov exponents).
+
+    out[r] = a * x + g * tanh(z), z = C x + c0 + B v, and
+    Eout[r] = J E[r] with the Jacobian J = diag(a) + diag(g * (1 - tanh(z)^2)) C (thesis 4.4.1).
+    E has shape (R, M, k).
+    """
+    m = c0.shape[0]
+    k = E.shape[2]
+    z = np.empty(m)
+    s = np.empty(m)
+    for r in range(X.shape[0]):
+        _pre(indptr, indices, data, B, c0, X[r], V[r], z)
+        for i in range(m):
+            t = tanh1(z[i])
+            out[r, i] = a[i] * X[r, i] + g[i] * t
+            s[i] = g[i] * (1.0 - t * t)
+        for i in range(m):
+            for j in range(k):
+                acc = 0.0
+                for q in range(indptr[i], indptr[i + 1]):
+                    acc += data[q] * E[r, indices[q], j]
+                Eout[r, i, j] = a[i] * E[r, i, j] + s[i] * acc
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def post_batch(a, g, X, Z, out):
+    """out = a * X + g * tanh(Z) row by row (the dense-matrix path computes Z with BLAS)."""
+    for r in range(X.shape[0]):
+        _post(a, g, X[r], Z[r], out[r])
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def slope_batch(g, Z, S, T):
+    """T = tanh(Z) and S = g * (1 - tanh(Z)^2) elementwise (Jacobian diagonal, dense path)."""
+    for r in range(Z.shape[0]):
+        for i in range(Z.shape[1]):
+            t = tanh1(Z[r, i])
+            T[r, i] = t
+            S[r, i] = g[i] * (1.0 - t * t)
