@@ -187,7 +187,7 @@ class _Linear(DrivenSystem):
         self.state_dim = len(self.A)
         self.inputs = InputDomain.from_range(["u"], -1, 1)
 
-    def step(self, X, V):
+    def step(self, X, V, out=None):
         return X @ self.A.T + V[:, :1]
 
     def tangent(self, X, V, E):
@@ -379,3 +379,31 @@ def test_external_model_file_without_outputs_falls_back_to_its_own_run(tmp_path)
     r = check_model(old, Settings(replicas=6, scan_replicas=8, length=800))
     assert r.verdict.verdict == "reliable"  # the open loop: sigma(C) = 0.95
     assert any("own run" in n or "no training outputs" in n or "could not be measured" in n for n in r.notes)
+
+
+def test_algebraic_evidence_for_leaky_and_expanding_networks():
+    from dynmodel.reliability.evidence import tanh_network_evidence
+
+    C = np.array([[0.0, 0.8], [0.3, 0.0]])
+    ev = {e.name: e for e in tanh_network_evidence(C, a=[0.1, 0.1], g=[1, 1], c0=[0, 0])}
+    assert ev["max|a| + sigma(diag(g) C)"].implies == "reliable" and abs(ev["max|a| + sigma(diag(g) C)"].value - 0.9) < 1e-12
+    ev = {e.name: e for e in tanh_network_evidence(1.5 * np.eye(2), a=[0, 0], g=[1, 1], c0=[0, 0])}
+    assert ev["rho(C)"].implies == "unreliable" and ev["sigma(C)"].implies == "undecided"
+    ev = {e.name: e for e in tanh_network_evidence(1.5 * np.eye(2), a=[0, 0], g=[1, 1], c0=[0.3, 0])}
+    assert ev["rho(C)"].implies == "undecided"  # with biases rho > 1 proves nothing
+    # the numerical tests agree with the proof of eq. 5.24: u = 0 has the fixed points +-x* per element
+    r = check(_system("tanh-network", C=[[1.5, 0], [0, 1.5]]), Settings(replicas=8, scan_replicas=16, length=600))
+    assert r.verdict.verdict == "unreliable"
+    assert _level(r, 0.0).responses == 4
+
+
+def test_json_report_is_strict_json(tmp_path):
+    class Blowup(_Linear):
+        pass
+
+    with np.errstate(over="ignore", invalid="ignore"):  # the test system's own overflow
+        r = check(Blowup([[1.5, 0.0], [0.0, 0.2]]), Settings(replicas=4, scan_replicas=4, length=2000, levels=3))
+    assert r.verdict.verdict == "unreliable"
+    assert any("diverged" in c for c in r.verdict.counterexamples)
+    text = json.dumps(r.to_json(), allow_nan=False)
+    assert "diverged" in text

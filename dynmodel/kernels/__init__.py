@@ -1,6 +1,6 @@
 """Compiled (numba) hot loops. Every kernel here has a plain-numpy twin in the tests or benchmarks."""
 from .tanh import tanh_vec
-from .network import drive, free_run, post_batch, slope_batch, step_batch, tangent_batch
+from .network import dense_step_batch, dense_tangent_batch, drive, free_run, step_batch, tangent_batch
 from .spread import group_spread, row_distances
 
-__all__ = ["tanh_vec", "drive", "free_run", "step_batch", "tangent_batch", "post_batch", "slope_batch", "group_spread", "row_distances"]
+__all__ = ["tanh_vec", "drive", "free_run", "step_batch", "tangent_batch", "dense_step_batch", "dense_tangent_batch", "group_spread", "row_distances"]

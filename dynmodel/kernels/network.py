@@ -152,18 +152,51 @@ def tangent_batch(indptr, indices, data, B, c0, a, g, X, V, E, out, Eout):
                 Eout[r, i, j] = a[i] * E[r, i, j] + s[i] * acc
 
 
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
+def _pre_dense(Ct, B, c0, x, v, z):
+    """z = C x + c0 + B v with Ct = C^T stored row-major (contiguous axpy over its rows)."""
+    m = c0.shape[0]
+    for i in range(m):
+        acc = c0[i]
+        for j in range(v.shape[0]):
+            acc += B[i, j] * v[j]
+        z[i] = acc
+    for j in range(m):
+        xj = x[j]
+        if xj != 0.0:
+            for i in range(m):
+                z[i] += xj * Ct[j, i]
+
+
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def post_batch(a, g, X, Z, out):
-    """out = a * X + g * tanh(Z) row by row (the dense-matrix path computes Z with BLAS)."""
+def dense_step_batch(Ct, B, c0, a, g, X, V, out):
+    """step_batch for a dense C given as Ct = C^T (faster than the CSR gather when C is full)."""
+    z = np.empty(c0.shape[0])
     for r in range(X.shape[0]):
-        _post(a, g, X[r], Z[r], out[r])
+        _pre_dense(Ct, B, c0, X[r], V[r], z)
+        _post(a, g, X[r], z, out[r])
 
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def slope_batch(g, Z, S, T):
-    """T = tanh(Z) and S = g * (1 - tanh(Z)^2) elementwise (Jacobian diagonal, dense path)."""
-    for r in range(Z.shape[0]):
-        for i in range(Z.shape[1]):
-            t = tanh1(Z[r, i])
-            T[r, i] = t
-            S[r, i] = g[i] * (1.0 - t * t)
+def dense_tangent_batch(Ct, B, c0, a, g, X, V, E, out, Eout):
+    """tangent_batch for a dense C given as Ct = C^T."""
+    m = c0.shape[0]
+    k = E.shape[2]
+    z = np.empty(m)
+    s = np.empty(m)
+    ce = np.empty(m)
+    for r in range(X.shape[0]):
+        _pre_dense(Ct, B, c0, X[r], V[r], z)
+        for i in range(m):
+            t = tanh1(z[i])
+            out[r, i] = a[i] * X[r, i] + g[i] * t
+            s[i] = g[i] * (1.0 - t * t)
+        for j in range(k):
+            for i in range(m):
+                ce[i] = 0.0
+            for q in range(m):
+                e = E[r, q, j]
+                for i in range(m):
+                    ce[i] += e * Ct[q, i]
+            for i in range(m):
+                Eout[r, i, j] = a[i] * E[r, i, j] + s[i] * ce[i]

@@ -119,9 +119,10 @@ def _settle(system: DrivenSystem, X: np.ndarray, V: np.ndarray, R: int, steps: i
         Xl, Vl = np.ascontiguousarray(X[rows]), np.ascontiguousarray(V[rows])
         chunk = min(SETTLE_CHECK, steps - t)
         prev = Xl
-        for _ in range(chunk):
+        bufs = [np.empty_like(Xl), np.empty_like(Xl)]
+        for k in range(chunk):
             prev = Xl
-            Xl = system.step(Xl, Vl)
+            Xl = system.step(Xl, Vl, bufs[k % 2])
         X[rows] = Xl
         t += chunk
         move = np.empty(len(rows))

@@ -14,6 +14,8 @@ from .system import DrivenSystem, Evidence, Sine
 from .verdict import Verdict, decide
 
 Progress = Callable[[str, "float | None", str], None]
+#: relative size of the random nudge of the constant scan's initial states
+NUDGE = 1e-8
 
 
 def no_progress(stage: str, fraction: float | None, message: str) -> None:
@@ -78,6 +80,10 @@ class Report:
         return lyapunov.to_json(e, self.sampling_time, self.continuous)
 
     def to_json(self) -> dict[str, Any]:
+        """Everything as plain JSON (non-finite numbers become null; statuses say why)."""
+        return _finite(self._json())
+
+    def _json(self) -> dict[str, Any]:
         dt, cont = self.sampling_time, self.continuous
         return {
             "verdict": self.verdict.verdict,
@@ -114,6 +120,18 @@ class Report:
             "notes": self.notes,
             "timing_seconds": self.timing,
         }
+
+
+def _finite(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
 
 
 def _lyapunov(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, k: int,
@@ -209,6 +227,10 @@ def check(system: DrivenSystem, settings: Settings | None = None, progress: Prog
     t0 = time.perf_counter()
     levels = constant_levels(system.inputs, settings.levels)
     Xs = system.sample_states(rng_scan, settings.scan_replicas)
+    # a start exactly on an unstable invariant set (the rest state at zero drive) would stay there:
+    # nudge every start so that only attractors are found
+    lo, hi = system.state_box()
+    Xs = Xs + NUDGE * (hi - lo) * rng_scan.standard_normal(Xs.shape)
     level_results = attractors.scan(system, levels, Xs, n, tol, rng_lvl, progress)
     timing["constant_scan"] = time.perf_counter() - t0
 

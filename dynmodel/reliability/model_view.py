@@ -104,8 +104,8 @@ class ModelSystem(DrivenSystem):
         return tune_in.reference(self.inner, self.model_inputs(u), self.model.bounds)
 
     # -- delegation ------------------------------------------------------------------------
-    def step(self, X: np.ndarray, V: np.ndarray) -> np.ndarray:
-        return self.inner.step(X, V)
+    def step(self, X: np.ndarray, V: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        return self.inner.step(X, V, out)
 
     def tangent(self, X: np.ndarray, V: np.ndarray, E: np.ndarray):
         return self.inner.tangent(X, V, E)

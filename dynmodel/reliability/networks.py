@@ -47,35 +47,28 @@ class SigmoidNetwork(DrivenSystem):
             self.description = description
         self._args = (C.indptr.astype(np.int64), C.indices.astype(np.int64), C.data.astype(np.float64),
                       self.B, self.c0, self.a, self.g)
-        # dense connection matrices: matrix products through BLAS beat the sparse gather
+        # dense connection matrices: contiguous compiled loops over C^T beat the sparse gather
+        # (and, unlike BLAS, do not stall when the machine is busy)
         use_dense = DENSE_MIN_SIZE <= m <= DENSE_MAX_SIZE and C.nnz >= DENSE_MIN_FILL * m * m
         self._dense = np.ascontiguousarray(C.T.toarray()) if use_dense else None
 
-    def step(self, X: np.ndarray, V: np.ndarray) -> np.ndarray:
-        out = np.empty(X.shape)
+    def step(self, X: np.ndarray, V: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        out = np.empty(X.shape) if out is None else out
         X, V = np.ascontiguousarray(X), np.ascontiguousarray(V)
         if self._dense is not None:
-            Z = X @ self._dense
-            Z += V @ self.B.T + self.c0
-            kernels.post_batch(self.a, self.g, X, Z, out)
+            kernels.dense_step_batch(self._dense, *self._args[3:], X, V, out)
         else:
             kernels.step_batch(*self._args, X, V, out)
         return out
 
     def tangent(self, X: np.ndarray, V: np.ndarray, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         out = np.empty(X.shape)
+        Eout = np.empty(E.shape)
         X, V, E = np.ascontiguousarray(X), np.ascontiguousarray(V), np.ascontiguousarray(E)
         if self._dense is not None:
-            Z = X @ self._dense
-            Z += V @ self.B.T + self.c0
-            T, S = np.empty(Z.shape), np.empty(Z.shape)
-            kernels.slope_batch(self.g, Z, S, T)
-            out[:] = self.a * X + self.g * T
-            R, m, k = E.shape
-            CE = (E.transpose(0, 2, 1).reshape(R * k, m) @ self._dense).reshape(R, k, m).transpose(0, 2, 1)
-            return out, self.a[None, :, None] * E + S[:, :, None] * CE
-        Eout = np.empty(E.shape)
-        kernels.tangent_batch(*self._args, X, V, E, out, Eout)
+            kernels.dense_tangent_batch(self._dense, *self._args[3:], X, V, E, out, Eout)
+        else:
+            kernels.tangent_batch(*self._args, X, V, E, out, Eout)
         return out, Eout
 
     def state_box(self) -> tuple[np.ndarray, np.ndarray]:

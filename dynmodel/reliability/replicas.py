@@ -128,8 +128,9 @@ def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: fl
         report_every = max(1, n // 20)
         live = R  # replicas still simulated per signal
         was_tiny, frozen = False, None
+        bufs = [np.empty_like(X), np.empty_like(X)]
         for t in range(n):
-            X = system.step(X, np.repeat(V[:, t, :], live, axis=0))
+            X = system.step(X, np.repeat(V[:, t, :], live, axis=0), bufs[t % 2])
             if live > 1:
                 group_spread(X, S, live, spread[t])
                 if t % COLLAPSE_CHECK == COLLAPSE_CHECK - 1:
@@ -138,6 +139,7 @@ def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: fl
                         # all replicas agree to rounding level at two checks in a row: simulate one per
                         # signal from here on and keep the last measured spread
                         X, live, frozen = np.ascontiguousarray(X[::live]), 1, spread[t].copy()
+                        bufs = [np.empty_like(X), np.empty_like(X)]
                     was_tiny = tiny
             else:
                 spread[t] = frozen

@@ -122,8 +122,9 @@ class ClosedLoop(ABC):
 class DrivenSystem(ABC):
     """Batched view of x_t = f(x_{t-1}, v_t) for the reliability check (definition 4.4)."""
 
-    name: ClassVar[str] = ""
-    description: ClassVar[str] = ""
+    #: short id and one-line description (class attributes; a view may set its own)
+    name: str = ""
+    description: str = ""
 
     #: dimension M of the state
     state_dim: int
@@ -149,8 +150,11 @@ class DrivenSystem(ABC):
         return np.ascontiguousarray(u, dtype=np.float64)
 
     @abstractmethod
-    def step(self, X: np.ndarray, V: np.ndarray) -> np.ndarray:
-        """x_t = f(x_{t-1}, v_t) for every row: X (R, M), V (R, d) -> (R, M)."""
+    def step(self, X: np.ndarray, V: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """x_t = f(x_{t-1}, v_t) for every row: X (R, M), V (R, d) -> (R, M).
+
+        ``out`` (same shape as X, never X itself) may receive the result; callers always use the
+        returned array, so an implementation is free to ignore it."""
 
     @abstractmethod
     def tangent(self, X: np.ndarray, V: np.ndarray, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -33,6 +33,7 @@ class Verdict:
 
 def _fmt_vec(v: np.ndarray, digits: int = 3, limit: int = 4) -> str:
     v = np.atleast_1d(v)
+    v = np.where(np.abs(v) < 1e-9 * (1.0 + np.abs(v).max()), 0.0, v)  # settled to within rounding of zero
     body = ", ".join(f"{x:.{digits}g}" for x in v[:limit])
     if len(v) > limit:
         body += f", ... ({len(v)} values, norm {np.linalg.norm(v):.3g})"

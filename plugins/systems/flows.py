@@ -48,8 +48,8 @@ class _Flow(TestSystem):
         prev[1:] = u[:-1]
         return np.ascontiguousarray(np.hstack([prev, u]))
 
-    def step(self, X: np.ndarray, V: np.ndarray) -> np.ndarray:
-        out = np.empty(X.shape)
+    def step(self, X: np.ndarray, V: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        out = np.empty(X.shape) if out is None else out
         _ode.step_batch(self.kind, self.p, np.ascontiguousarray(X), np.ascontiguousarray(V), self.params.substeps,
                         self.params.integration_step, out)
         return out

@@ -38,7 +38,7 @@ class GaussianMap(TestSystem):
         self.inputs = InputDomain.from_range(["u"], p.input_range[0], p.input_range[1])
         self._a2 = p.a * p.a
 
-    def step(self, X: np.ndarray, V: np.ndarray) -> np.ndarray:
+    def step(self, X: np.ndarray, V: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         return np.exp(-self._a2 * (X - self.params.b) ** 2) + V[:, :1]
 
     def tangent(self, X: np.ndarray, V: np.ndarray, E: np.ndarray):
@@ -98,8 +98,8 @@ class TanhNetwork(TestSystem):
         self.inputs = inputs
         self.rest_state = np.zeros(m)
 
-    def step(self, X, V):
-        return self.net.step(X, V)
+    def step(self, X, V, out=None):
+        return self.net.step(X, V, out)
 
     def tangent(self, X, V, E):
         return self.net.tangent(X, V, E)
