@@ -407,3 +407,27 @@ def test_json_report_is_strict_json(tmp_path):
     assert any("diverged" in c for c in r.verdict.counterexamples)
     text = json.dumps(r.to_json(), allow_nan=False)
     assert "diverged" in text
+
+
+def test_slow_convergence_is_inconclusive_and_a_longer_run_settles_it():
+    s = _Linear([[0.99]])
+    r = check(s, Settings(replicas=6, scan_replicas=8, length=300, levels=5))
+    assert r.verdict.verdict == "inconclusive" and r.exit_code == 1
+    slow = [x for x in r.signals if x.status == "slow"]
+    assert slow and all(abs(x.rate - np.log(0.99)) < 2e-3 for x in slow)
+    need = max(x.steps_needed for x in slow)
+    assert 1000 < need < 2500  # 0.99^t from a spread of about 2 down to the tolerance 2e-6
+    assert "rerun with --length" in " ".join(r.verdict.unsettled)
+    r = check(s, Settings(replicas=6, scan_replicas=8, length=need + 200, levels=5))
+    assert r.verdict.verdict == "reliable"
+    assert_consistent(r)
+
+
+def test_lorenz_4_52_exponent_is_minus_one_per_time_unit_at_rest():
+    """At u = 0, x1 -> 0 and the error of (x2, x3) decays as e2' = -e2, e3' = -b e3 (eq. 4.47): lambda = -1."""
+    s = _system("lorenz-driven")
+    V = s.drive(np.zeros((3000, 1)))
+    Vr = np.ascontiguousarray(np.repeat(V[:, None, :], 2, axis=1))
+    ex = lyapunov.exponents(s, Vr, s.sample_states(np.random.default_rng(0), 2), 2, np.random.default_rng(1))
+    for e in ex:
+        np.testing.assert_allclose(e.values / s.sampling_time, [-1.0, -2.666], atol=0.01)

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..kernels import group_spread, row_distances
 from . import lyapunov
+from .replicas import max_pairwise
 from .system import DrivenSystem
 
 MAX_PERIOD = 32
@@ -62,9 +63,11 @@ class LevelResult:
     attractors: list[Attractor]
     responses: int
     status: str
+    spread: float = 0.0  # largest distance between the replicas' end states
 
     def to_json(self, dt: float, continuous: bool) -> dict[str, Any]:
         return {"input": self.input.tolist(), "status": self.status, "responses": self.responses,
+                "spread": self.spread,
                 "attractors": [a.to_json(dt, continuous) for a in self.attractors]}
 
 
@@ -137,7 +140,7 @@ def _settle(system: DrivenSystem, X: np.ndarray, V: np.ndarray, R: int, steps: i
 def _analyse(system: DrivenSystem, level: np.ndarray, F: np.ndarray, per: np.ndarray, v: np.ndarray,
              tol: float, near: float, rng: np.random.Generator) -> LevelResult:
     if not np.isfinite(F).all():
-        return LevelResult(level, [], 0, "diverged")
+        return LevelResult(level, [], 0, "diverged", float("inf"))
     groups = _clusters(F, tol)
     periodic: list[tuple[list[int], int]] = []
     nonper: list[list[int]] = []
@@ -188,7 +191,7 @@ def _analyse(system: DrivenSystem, level: np.ndarray, F: np.ndarray, per: np.nda
         status = "several responses"
     else:
         status = "no fixed point"
-    return LevelResult(level, attractors, responses, status)
+    return LevelResult(level, attractors, responses, status, max_pairwise(F))
 
 
 def scan(system: DrivenSystem, levels: list[np.ndarray], X0: np.ndarray, steps: int, tol: float,

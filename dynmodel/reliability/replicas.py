@@ -19,8 +19,10 @@ from .system import DrivenSystem
 
 #: a spread above this fraction of the state scale, not shrinking, counts as "apart"
 APART = 1e-3
-#: "shrinking": the spread fell by at least this factor over the last quarter of the run
+#: "still shrinking": the log spread falls by at least this much over the second half of the run ...
 SHRINK = 0.1
+#: ... along a trend at least this many times its scatter
+TREND = 5.0
 #: every this many steps, identical replicas are collapsed into one
 COLLAPSE_CHECK = 50
 #: replicas closer than this fraction of the state scale are equal up to rounding
@@ -69,11 +71,12 @@ class FamilyResult:
     family: str
     members: list[str]
     final_distance: float
-    status: str
+    status: str  # as for a signal, judged on the distance between members over the common tail
+    steps_needed: int | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {"family": self.family, "members": self.members, "final_distance": self.final_distance,
-                "status": self.status}
+                "status": self.status, "tail_steps_needed_estimate": self.steps_needed}
 
 
 def max_pairwise(F: np.ndarray) -> float:
@@ -87,23 +90,42 @@ def max_pairwise(F: np.ndarray) -> float:
     return best
 
 
+def shrink_trend(spread: np.ndarray) -> tuple[float, float, float]:
+    """Least-squares slope of log(spread) over the second half of a run (per step), the drop in
+    log spread it predicts over that half, and the scatter (std of the residuals)."""
+    n = len(spread)
+    h = spread[n // 2:]
+    t = np.arange(len(h), dtype=np.float64)
+    ok = h > 0
+    if ok.sum() < 3:
+        return 0.0, 0.0, 0.0
+    y = np.log(h[ok])
+    slope, icpt = np.polyfit(t[ok], y, 1)
+    resid = y - (slope * t[ok] + icpt)
+    return float(slope), float(-slope * len(h)), float(resid.std())
+
+
 def classify(spread: np.ndarray, final: float, tol: float, apart: float) -> dict[str, Any]:
-    """Status, time to converge and shrink rate from the spread history of one signal."""
+    """Status, time to converge and shrink rate from the spread history of one signal.
+
+    ``slow``: above the tolerance at the end, but the log spread over the second half falls by at
+    least 10 % along a trend five times larger than its scatter (exponential convergence that
+    needs a longer run; the steps needed are extrapolated). Otherwise ``apart`` (at least
+    ``apart``) or ``close``.
+    """
     n = len(spread)
     bad = np.flatnonzero(~np.isfinite(spread))
     if len(bad):
         return {"status": "diverged", "diverged_at": int(bad[0]) + 1}
     w = max(1, n // 20)
-    q = (3 * n) // 4
     d_end = float(spread[n - w:].max())
-    d_mid = float(spread[max(0, q - w):max(q, 1)].max())
     if d_end <= tol and final <= 2 * tol:
         above = np.flatnonzero(spread > tol)
         return {"status": "converged", "converged_after": 0 if len(above) == 0 else int(above[-1]) + 2}
-    if d_mid > 0 and d_end < SHRINK * d_mid:
-        rate = float(np.log(max(d_end, 1e-300) / d_mid) / (n - q))
-        need = int(np.ceil(n + np.log(tol / d_end) / rate))
-        return {"status": "slow", "rate": rate, "steps_needed": need}
+    slope, drop, scatter = shrink_trend(spread)
+    if slope < 0 and drop >= SHRINK and drop >= TREND * scatter:
+        need = int(np.ceil(n + np.log(tol / max(d_end, 1e-300)) / slope))
+        return {"status": "slow", "rate": slope, "steps_needed": need}
     if final >= apart:
         return {"status": "apart"}
     return {"status": "close"}
@@ -114,6 +136,7 @@ def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: fl
     """Drive ``len(X0)`` replicas with every signal; batches by signal length."""
     results: dict[int, SignalResult] = {}
     finals: dict[int, np.ndarray] = {}
+    fam_hist: dict[str, np.ndarray] = {}
     R, M = X0.shape
     by_len: dict[int, list[int]] = {}
     for i, s in enumerate(signals):
@@ -125,6 +148,9 @@ def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: fl
         V = np.stack([system.drive(signals[i].u) for i in idx])  # (S, n, d)
         X = np.ascontiguousarray(np.tile(X0, (S, 1)))
         spread = np.zeros((n, S))
+        fams = {f: [j for j, i in enumerate(idx) if signals[i].family == f]
+                for f in sorted({signals[i].family for i in idx if signals[i].family})}
+        hist = {f: np.zeros(n) for f in fams}
         report_every = max(1, n // 20)
         live = R  # replicas still simulated per signal
         was_tiny, frozen = False, None
@@ -143,10 +169,14 @@ def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: fl
                     was_tiny = tiny
             else:
                 spread[t] = frozen
+            for f, js in fams.items():  # distance between the members' first replicas
+                heads = X[[j * live for j in js]]
+                hist[f][t] = max_pairwise(heads)
             if t % report_every == 0:
                 progress("replicas", (done + (t + 1) * S) / total,
                          f"{S * R} replicas x {S} signals, step {t + 1}/{n}")
         done += n * S
+        fam_hist.update(hist)
         F = X.reshape(S, live, M)
         for j, i in enumerate(idx):
             final = max_pairwise(F[j])
@@ -158,7 +188,7 @@ def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: fl
     for fam in sorted({s.family for s in signals if s.family}):
         members = [i for i, s in enumerate(signals) if s.family == fam]
         d = max_pairwise(np.concatenate([finals[i] for i in members]))
-        member_ok = all(results[i].status == "converged" for i in members)
-        status = "converged" if d <= 2 * tol else ("apart" if d >= apart else ("close" if member_ok else "unsettled"))
-        families.append(FamilyResult(fam, [signals[i].name for i in members], d, status))
+        tail = min(signals[i].tail_from or 0 for i in members)
+        info = classify(fam_hist[fam][tail:], d, tol, apart)
+        families.append(FamilyResult(fam, [signals[i].name for i in members], d, info["status"], info.get("steps_needed")))
     return [results[i] for i in range(len(signals))], families

@@ -108,8 +108,8 @@ def render(r: Report, console: Console) -> None:
                 console.print(f"tune-in: [red]{ti.note}[/]")
             else:
                 ok = ti.required <= ti.configured
-                console.print(f"tune-in: free runs from {ti.replicas} initial states follow the reference within "
-                              f"{ti.tolerance:g} of the output range after [bold]{ti.required}[/] measured samples; "
+                console.print(f"tune-in: free runs from {ti.replicas} initial states agree within {ti.tolerance:g} "
+                              f"of the output range once tuned in on [bold]{ti.required}[/] measured samples; "
                               f"the model uses {ti.configured} "
                               + ("[green](enough)[/]" if ok else "[red](too few: raise tune_in)[/]"))
     for note in r.notes:

@@ -43,6 +43,10 @@ def _fmt_vec(v: np.ndarray, digits: int = 3, limit: int = 4) -> str:
 def describe_level(level: LevelResult, names: list[str]) -> str:
     """'u = 0: fixed point (0, 0); 2-cycle (0.864, -0.694) <-> (-0.864, 0.694) in 2 phases'."""
     inp = ", ".join(f"{n} = {x:.4g}" for n, x in zip(names, level.input))
+    if level.status == "not settled" and all(a.kind != "non-periodic" for a in level.attractors):
+        pts = np.concatenate([a.points for a in level.attractors])
+        return (f"{inp}: {level.responses} end states within {level.spread:.3g} of each other near "
+                f"{_fmt_vec(pts[0])}, still converging (rerun with --length)")
     parts = []
     for a in level.attractors:
         if a.kind == "fixed point":
@@ -85,6 +89,13 @@ def decide(evidence: list[Evidence], signals: list[SignalResult], families: list
     phase = [f"the final state depends on the phase the drive started at: {len(f.members)} phases of the same "
              f"input end {f.final_distance:.3g} apart after an identical tail (fig. 5.5)"
              for f in families if f.status == "apart"]
+    for f in families:
+        if f.status in ("slow", "close") and all(by_name[m].status == "converged" for m in f.members):
+            unsettled.append(f"the {len(f.members)} phases of the same input (fig. 5.5) end {f.final_distance:.3g} "
+                             "apart after their common tail and still approach each other: rerun with --length"
+                             if f.status == "slow" else
+                             f"the {len(f.members)} phases of the same input (fig. 5.5) end {f.final_distance:.3g} "
+                             "apart after their common tail")
     positive: list[tuple[float, str]] = []
     for name, e in exps.items():
         if e.sign() == "positive":
