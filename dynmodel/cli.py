@@ -390,9 +390,12 @@ def reliability_check(
             values = _parse_params(param)
             try:
                 target = cls(**values)
-            except Exception as exc:
-                raise SpecError(f"invalid parameter: {' '.join(str(exc).splitlines()[-2:]).strip()}", "--param",
-                                f"see the parameters of '{system}' in its docstring (dynmodel plugins)") from None
+            except ValueError as exc:  # pydantic's ValidationError is a ValueError
+                errors = getattr(exc, "errors", lambda: [])()
+                loc = ".".join(str(p) for p in errors[0]["loc"]) if errors else ""
+                detail = (f"{loc + ': ' if loc else ''}{errors[0]['msg']}" if errors else str(exc).splitlines()[-1])
+                raise SpecError(f"invalid parameter ({detail})", "--param",
+                                f"'{system}' takes {', '.join(cls.Params.model_fields)}") from None
             report = check(target, settings, progress)
             source = {"test_system": system, "params": target.params.model_dump(mode="json")}
         else:

@@ -73,6 +73,13 @@ class Report:
         return max(vals) if vals else None
 
     @property
+    def length_needed(self) -> int | None:
+        """The run length the slowest still-converging test asks for (None if nothing is slow)."""
+        vals = [s.steps_needed for s in self.signals if s.status == "slow" and s.steps_needed]
+        vals += [f.length_needed for f in self.families if f.status == "slow" and f.length_needed]
+        return max(vals) if vals else None
+
+    @property
     def exit_code(self) -> int:
         return 0 if self.verdict.verdict == "reliable" else 1
 
@@ -97,6 +104,7 @@ class Report:
             "tolerance": self.tolerance,
             "washout_steps": self.washout,
             "washout_time": None if self.washout is None else self.washout * dt,
+            "length_needed": self.length_needed,
             "algebraic": [e.to_json() for e in self.evidence],
             "replica_test": {
                 "replicas": self.settings.replicas,

@@ -72,11 +72,11 @@ class FamilyResult:
     members: list[str]
     final_distance: float
     status: str  # as for a signal, judged on the distance between members over the common tail
-    steps_needed: int | None = None
+    length_needed: int | None = None  # run length whose tail would let them meet (status slow)
 
     def to_json(self) -> dict[str, Any]:
         return {"family": self.family, "members": self.members, "final_distance": self.final_distance,
-                "status": self.status, "tail_steps_needed_estimate": self.steps_needed}
+                "status": self.status, "length_needed_estimate": self.length_needed}
 
 
 def max_pairwise(F: np.ndarray) -> float:
@@ -189,6 +189,9 @@ def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: fl
         members = [i for i, s in enumerate(signals) if s.family == fam]
         d = max_pairwise(np.concatenate([finals[i] for i in members]))
         tail = min(signals[i].tail_from or 0 for i in members)
+        n = len(signals[members[0]].u)
         info = classify(fam_hist[fam][tail:], d, tol, apart)
-        families.append(FamilyResult(fam, [signals[i].name for i in members], d, info["status"], info.get("steps_needed")))
+        need = info.get("steps_needed")  # tail steps; the tail is a fixed share of the run
+        length = None if need is None else int(np.ceil(need * n / max(1, n - tail)))
+        families.append(FamilyResult(fam, [signals[i].name for i in members], d, info["status"], length))
     return [results[i] for i in range(len(signals))], families

@@ -119,6 +119,8 @@ def render(r: Report, console: Console) -> None:
     console.print(f"verdict: [{_STYLE[v.verdict]}]{v.verdict.upper()}[/]")
     for reason in v.reasons:
         console.print(f"  - {reason}", markup=False)
+    if v.verdict == "inconclusive" and r.length_needed:
+        console.print(f"rerun with --length {r.length_needed} (or more) to let the slow tests settle")
     if r.washout is not None and v.verdict == "reliable":
         extra = f" ({r.washout * r.sampling_time:.4g} time units)" if r.continuous else ""
         console.print(f"washout: discard the first {r.washout} samples{extra} of a run (replicas agree within "

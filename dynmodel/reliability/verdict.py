@@ -81,8 +81,8 @@ def decide(evidence: list[Evidence], signals: list[SignalResult], families: list
     diverged = [f"the state diverged at step {s.diverged_at} under {s.name}" for s in signals if s.status == "diverged"]
     for s in signals:
         if s.status == "slow":
-            unsettled.append(f"still converging under {s.name} (distance {s.final_distance:.3g}; about "
-                             f"{s.steps_needed} steps needed: rerun with --length)")
+            unsettled.append(f"still converging under {s.name} (distance {s.final_distance:.3g}): rerun with "
+                             f"--length {s.steps_needed} or more")
         elif s.status == "close":
             unsettled.append(f"replicas end {s.final_distance:.3g} apart (above the tolerance {tol:.3g}, not "
                              f"shrinking) under {s.name}")
@@ -92,8 +92,8 @@ def decide(evidence: list[Evidence], signals: list[SignalResult], families: list
     for f in families:
         if f.status in ("slow", "close") and all(by_name[m].status == "converged" for m in f.members):
             unsettled.append(f"the {len(f.members)} phases of the same input (fig. 5.5) end {f.final_distance:.3g} "
-                             "apart after their common tail and still approach each other: rerun with --length"
-                             if f.status == "slow" else
+                             f"apart after their common tail and still approach each other: rerun with --length "
+                             f"{f.length_needed} or more" if f.status == "slow" else
                              f"the {len(f.members)} phases of the same input (fig. 5.5) end {f.final_distance:.3g} "
                              "apart after their common tail")
     positive: list[tuple[float, str]] = []
