@@ -1,4 +1,4 @@
-"""Command line: ``dynmodel fit | validate | predict | inspect | plugins | schema | generate``.
+"""Command line: ``dynmodel fit | validate | predict | inspect | reliability-check | plugins | schema | generate``.
 
 Tables go to stdout, progress to stderr, machine output to ``--json FILE``. A user's mistake
 gets one line on stderr and exit code 2 (1 when a check ran and failed, e.g. a diverging
@@ -319,17 +319,113 @@ def inspect(model_path: Path = typer.Argument(..., metavar="MODEL"),
         _write_json(json_path, summary)
 
 
+# ------------------------------------------------------------------------------ reliability-check
+def _parse_params(items: list[str]) -> dict[str, Any]:
+    import yaml
+
+    from .errors import SpecError
+
+    values: dict[str, Any] = {}
+    for item in items:
+        if "=" not in item:
+            raise SpecError(f"'{item}' is not key=value", "--param", "write e.g. --param a=3.5")
+        key, raw = item.split("=", 1)
+        try:
+            values[key.strip()] = yaml.safe_load(raw)
+        except yaml.YAMLError:
+            raise SpecError(f"cannot read the value of '{item}'", "--param", "write e.g. --param C=[[0.3,2],[-0.5,-1.9]]") from None
+    return values
+
+
+def _parse_sine(text: str):
+    from .errors import SpecError
+    from .reliability import Sine
+
+    parts = text.split(":")
+    try:
+        if len(parts) not in (2, 3):
+            raise ValueError
+        nums = [float(p) for p in parts]
+    except ValueError:
+        raise SpecError(f"'{text}' is not AMPLITUDE:OMEGA[:OFFSET]", "--sine", "write e.g. --sine 27:1.4") from None
+    return Sine(nums[0], nums[1], nums[2] if len(nums) == 3 else None)
+
+
+@app.command("reliability-check")
+@handled
+def reliability_check(
+        model_path: Optional[Path] = typer.Argument(None, metavar="[MODEL]", help="model file written by dynmodel fit"),
+        system: Optional[str] = typer.Option(None, "--system", help="check a built-in test system instead (see dynmodel plugins)"),
+        param: list[str] = typer.Option([], "--param", "-p", help="test-system parameter as key=value (repeatable)"),
+        json_path: Optional[Path] = typer.Option(None, "--json", help="write the full report as JSON"),
+        replicas: int = typer.Option(16, "--replicas", min=2, help="initial states per test input"),
+        scan_replicas: int = typer.Option(32, "--scan-replicas", min=2, help="initial states per constant input"),
+        length: Optional[int] = typer.Option(None, "--length", min=50, help="steps per test run (default 2000)"),
+        levels: int = typer.Option(21, "--levels", min=2, help="constant inputs per channel in the scan"),
+        sine: list[str] = typer.Option([], "--sine", help="extra test drive AMPLITUDE:OMEGA[:OFFSET] on the first input "
+                                                          "(omega in rad per time unit; repeatable)"),
+        tolerance: float = typer.Option(1e-6, "--tolerance", min=0.0, help="replicas count as converged within this "
+                                                                          "fraction of the state-space diagonal"),
+        seed: int = typer.Option(0, "--seed", help="seed of initial states and noise inputs"),
+        quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output")) -> None:
+    """Does the model forget its initial state? Replica test, Lyapunov exponents, constant-input scan
+    (thesis 4.4.1, 5.3.1); exit 0 reliable, 1 unreliable or inconclusive."""
+    from . import registry
+    from .errors import SpecError
+    from .progress import Reporter
+    from .reliability import Settings, check, check_model
+
+    if (model_path is None) == (system is None):
+        raise DynmodelError("give either a model file or --system NAME" if model_path is None else
+                            "give a model file or --system, not both", "reliability-check",
+                            "e.g. dynmodel reliability-check model.h5, or dynmodel reliability-check --system duffing")
+    if param and system is None:
+        raise DynmodelError("--param sets parameters of a --system test system", "--param", "drop it for model files")
+    settings = Settings(replicas=replicas, scan_replicas=scan_replicas, length=length, levels=levels, seed=seed,
+                        tolerance=tolerance, sines=tuple(_parse_sine(x) for x in sine))
+    _warnings_to_stderr()
+    with Reporter(enabled=not quiet) as progress:
+        if system is not None:
+            cls = registry.system(system)
+            values = _parse_params(param)
+            try:
+                target = cls(**values)
+            except ValueError as exc:  # pydantic's ValidationError is a ValueError
+                errors = getattr(exc, "errors", lambda: [])()
+                loc = ".".join(str(p) for p in errors[0]["loc"]) if errors else ""
+                detail = (f"{loc + ': ' if loc else ''}{errors[0]['msg']}" if errors else str(exc).splitlines()[-1])
+                raise SpecError(f"invalid parameter ({detail})", "--param",
+                                f"'{system}' takes {', '.join(cls.Params.model_fields)}") from None
+            report = check(target, settings, progress)
+            source = {"test_system": system, "params": target.params.model_dump(mode="json")}
+        else:
+            from . import store
+
+            progress("load", None, str(model_path))
+            model = store.load(model_path)
+            report = check_model(model, settings, progress, str(model_path))
+            source = {"model": str(model_path)}
+    from .reliability.report import render
+
+    render(report, out)
+    if json_path:
+        _write_json(json_path, {**source, **report.to_json()})
+    if report.exit_code:
+        raise typer.Exit(report.exit_code)
+
+
 # ------------------------------------------------------------------------------ plugins / schema
 @app.command()
 @handled
 def plugins() -> None:
-    """List the installed model families and data generators."""
+    """List the installed model families, data generators and reliability test systems."""
     from importlib.metadata import entry_points
 
     from . import registry
 
     for group, loaded, title in [(registry.FAMILIES, registry.families(), "model families"),
-                                 (registry.SOURCES, registry.sources(), "data generators")]:
+                                 (registry.SOURCES, registry.sources(), "data generators"),
+                                 (registry.SYSTEMS, registry.systems(), "test systems for reliability-check --system")]:
         eps = {ep.name: ep.value for ep in entry_points(group=group)}
         table = Table(title=f"{title} ({group})", title_justify="left")
         table.add_column("name")

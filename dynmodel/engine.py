@@ -54,7 +54,7 @@ def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[Fi
                             "adjust model.params or the data split") from exc
     train_u, lengths = ds.concat_inputs("train")
     model = FittedModel(family, pre, td.output_bounds(), spec.resolved(), provenance=_provenance(spec, ds),
-                        train_input=train_u, train_input_lengths=lengths)
+                        train_input=train_u, train_input_lengths=lengths, train_output=ds.concat_outputs("train"))
     progress("evaluate", None, "free runs over every recording")
     model.metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
     return model, runs

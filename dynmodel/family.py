@@ -10,12 +10,15 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar
+from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from .data.training import TrainingData
+
+if TYPE_CHECKING:
+    from .reliability.system import DrivenSystem
 
 #: progress callback: (stage, fraction done in [0, 1] or None, message)
 Progress = Callable[[str, "float | None", str], None]
@@ -94,6 +97,13 @@ class Family(ABC):
     def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray],
                     attrs: dict[str, Any]) -> "Family":
         """Rebuild a fitted model from :meth:`to_arrays` output."""
+
+    # -- reliability -----------------------------------------------------------------------
+    def driven_system(self) -> "DrivenSystem | None":
+        """The fitted model as a batched driven system x_t = f(x_{t-1}, v_t) in model space, for
+        ``dynmodel reliability-check`` (see :mod:`dynmodel.reliability.system`); None when the
+        family has no state to test."""
+        return None
 
     def summary(self) -> dict[str, Any]:
         """A few facts for `dynmodel inspect`."""

@@ -30,6 +30,7 @@ class FittedModel:
     provenance: dict[str, Any] = field(default_factory=dict)
     train_input: np.ndarray | None = None  # raw training inputs (for reliability checks)
     train_input_lengths: np.ndarray | None = None
+    train_output: np.ndarray | None = None  # measured training outputs (tune-in of external-mode checks)
 
     @property
     def input_names(self) -> list[str]:

@@ -19,8 +19,9 @@ from .errors import DynmodelError
 
 FAMILIES = "dynmodel.families"
 SOURCES = "dynmodel.sources"
+SYSTEMS = "dynmodel.systems"
 
-_KIND = {FAMILIES: "model family", SOURCES: "data generator"}
+_KIND = {FAMILIES: "model family", SOURCES: "data generator", SYSTEMS: "test system"}
 
 
 @lru_cache(maxsize=None)
@@ -51,6 +52,11 @@ def sources() -> dict[str, Any]:
     return dict(_load_group(SOURCES))
 
 
+def systems() -> dict[str, Any]:
+    """Installed built-in test systems for the reliability check, by id."""
+    return dict(_load_group(SYSTEMS))
+
+
 def unknown_name_message(kind: str, name: str, known: list[str]) -> tuple[str, str]:
     """(what, fix) texts for an unknown plugin name, with a close match when there is one."""
     what = f"unknown {kind} '{name}'"
@@ -74,4 +80,12 @@ def source(name: str) -> Any:
     if name not in table:
         what, fix = unknown_name_message("generator", name, sorted(table))
         raise DynmodelError(what, "data.generator", fix)
+    return table[name]
+
+
+def system(name: str) -> Any:
+    table = systems()
+    if name not in table:
+        what, fix = unknown_name_message("test system", name, sorted(table))
+        raise DynmodelError(what, "--system", fix)
     return table[name]

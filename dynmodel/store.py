@@ -8,7 +8,7 @@ Layout (``format_version`` 1)::
     /preprocessing/   input/output offsets and scales, divergence bounds; names, delay lines as attrs
     /eval/            one group per split with metric attrs; attr "metrics_json" holds everything
     /provenance       attrs: dynmodel version, seed, sha256 of the training data, library versions
-    /data/            training inputs (for reliability checks), gzip-compressed
+    /data/            training inputs and outputs (for reliability checks), gzip-compressed
 
 The file is written to a temporary name in the target folder and renamed, so a crash never
 leaves a half-written model behind.
@@ -112,6 +112,8 @@ def save(model: FittedModel, path: str | Path) -> Path:
                 dg.create_dataset("train_input", data=model.train_input, compression="gzip", shuffle=True)
                 if model.train_input_lengths is not None:
                     dg.create_dataset("train_input_lengths", data=model.train_input_lengths)
+                if model.train_output is not None:
+                    dg.create_dataset("train_output", data=model.train_output, compression="gzip", shuffle=True)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -161,14 +163,16 @@ def load(path: str | Path) -> FittedModel:
             bounds = (np.asarray(pg["bounds_low"][()]), np.asarray(pg["bounds_high"][()]))
             metrics = json.loads(f["eval"].attrs["metrics_json"])
             provenance = _read_attrs(f["provenance"])
-            train_input = lengths = None
+            train_input = lengths = train_output = None
             if "data" in f and "train_input" in f["data"]:
                 train_input = np.asarray(f["data/train_input"][()])
                 if "train_input_lengths" in f["data"]:
                     lengths = np.asarray(f["data/train_input_lengths"][()])
+                if "train_output" in f["data"]:
+                    train_output = np.asarray(f["data/train_output"][()])
     except ModelFileError:
         raise
     except (OSError, KeyError, ValueError, TypeError, json.JSONDecodeError) as exc:
         raise ModelFileError(f"corrupt model file ({type(exc).__name__}: {exc})", str(path),
                              "refit with `dynmodel fit`") from None
-    return FittedModel(family, pre, bounds, spec, metrics, provenance, train_input, lengths)
+    return FittedModel(family, pre, bounds, spec, metrics, provenance, train_input, lengths, train_output)

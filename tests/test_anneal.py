@@ -132,6 +132,16 @@ def test_annealing_improves_on_its_random_start_and_is_reproducible(tmp_path):
     assert "annealing" in loaded.family.summary()
 
 
+def test_annealed_networks_pass_the_reliability_check():
+    """Leaky elements (eq. 6.21) with sigma(C) <= 0.95: no algebraic proof applies in general (the
+    bound max|a| + sigma(diag(g) C) exceeds 1), so the numerical tests decide."""
+    from dynmodel.reliability import check_model
+
+    report = check_model(engine.fit(make_spec(_raw(steps=40))))
+    assert report.verdict.verdict == "reliable", report.verdict.reasons
+    assert max(e.largest for e in report.exponents.values()) < 0
+
+
 def test_restarts_in_threads_equal_restarts_in_sequence():
     par = engine.fit(make_spec(_raw(steps=20, restarts=2, workers=2)))
     seq = engine.fit(make_spec(_raw(steps=20, restarts=2, workers=1)))

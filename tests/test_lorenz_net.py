@@ -122,6 +122,16 @@ def test_fit_is_reproducible_saved_exactly_and_annealing_helps(tmp_path):
     assert loaded.family.summary()["couplings"] == np.count_nonzero(a.family.C_)
 
 
+def test_trained_networks_pass_the_reliability_check():
+    from dynmodel.reliability import check_model
+
+    for strategy in ("parallel", "feed-forward"):
+        m = engine.fit(make_spec(_raw(strategy=strategy, steps=20)))
+        report = check_model(m)
+        assert report.verdict.verdict == "reliable", report.verdict.reasons
+        assert max(e.largest for e in report.exponents.values()) < 0  # every drive contracts
+
+
 def test_a_validation_split_is_required():
     raw = _raw()
     raw["data"]["split"] = {"train": 1.0}

@@ -32,7 +32,7 @@ def test_layout_opens_in_any_hdf5_reader(tmp_path, model):
         assert f["eval/test"].attrs["nmse"] == pytest.approx(model.metrics["test"]["nmse"])
         prov = f["provenance"].attrs
         assert prov["dynmodel_version"] and len(prov["training_data_sha256"]) == 64 and prov["seed"] == 0
-        assert f["data/train_input"].shape == (1400, 1)
+        assert f["data/train_input"].shape == (1400, 1) and f["data/train_output"].shape == (1400, 1)
     assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]
 
 
@@ -93,6 +93,7 @@ def test_round_trip_keeps_everything(tmp_path, model):
     assert loaded.spec == model.spec and loaded.metrics == model.metrics
     assert loaded.provenance == model.provenance
     np.testing.assert_array_equal(loaded.train_input, model.train_input)
+    np.testing.assert_array_equal(loaded.train_output, model.train_output)
     a, b = model.family.to_arrays(), loaded.family.to_arrays()
     for key in a[0]:
         np.testing.assert_array_equal(a[0][key], b[0][key])

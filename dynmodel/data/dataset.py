@@ -82,6 +82,11 @@ class Dataset:
             return np.empty((0, len(self.input_names))), np.empty(0, dtype=np.int64)
         return np.concatenate(pieces), np.array([len(p) for p in pieces], dtype=np.int64)
 
+    def concat_outputs(self, split: str) -> np.ndarray:
+        """Outputs of ``split`` concatenated (the pieces of :meth:`concat_inputs`)."""
+        pieces = [self.recordings[rec].y[start:stop] for rec, start, stop in self.ranges.get(split, [])]
+        return np.concatenate(pieces) if pieces else np.empty((0, len(self.output_names)))
+
 
 # ---------------------------------------------------------------- loading sources
 

@@ -146,3 +146,78 @@ def step_batch(indptr, indices, data, B, c0, a, g, X, V, out):
         _pre(indptr, indices, data, B, c0, X[r], V[r], z)
         _post(a, g, X[r], z, out[r])
 
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def tangent_batch(indptr, indices, data, B, c0, a, g, X, V, E, out, Eout):
+    """One step of state and tangent vectors for many replicas (conditional Lyapunov exponents).
+
+    out[r] = a * x + g * tanh(z), z = C x + c0 + B v, and
+    Eout[r] = J E[r] with the Jacobian J = diag(a) + diag(g * (1 - tanh(z)^2)) C (thesis 4.4.1).
+    E has shape (R, M, k).
+    """
+    m = c0.shape[0]
+    k = E.shape[2]
+    z = np.empty(m)
+    s = np.empty(m)
+    for r in range(X.shape[0]):
+        _pre(indptr, indices, data, B, c0, X[r], V[r], z)
+        for i in range(m):
+            t = tanh1(z[i])
+            out[r, i] = a[i] * X[r, i] + g[i] * t
+            s[i] = g[i] * (1.0 - t * t)
+        for i in range(m):
+            for j in range(k):
+                acc = 0.0
+                for q in range(indptr[i], indptr[i + 1]):
+                    acc += data[q] * E[r, indices[q], j]
+                Eout[r, i, j] = a[i] * E[r, i, j] + s[i] * acc
+
+
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
+def _pre_dense(Ct, B, c0, x, v, z):
+    """z = C x + c0 + B v with Ct = C^T stored row-major (contiguous axpy over its rows)."""
+    m = c0.shape[0]
+    for i in range(m):
+        acc = c0[i]
+        for j in range(v.shape[0]):
+            acc += B[i, j] * v[j]
+        z[i] = acc
+    for j in range(m):
+        xj = x[j]
+        if xj != 0.0:
+            for i in range(m):
+                z[i] += xj * Ct[j, i]
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def dense_step_batch(Ct, B, c0, a, g, X, V, out):
+    """step_batch for a dense C given as Ct = C^T (faster than the CSR gather when C is full)."""
+    z = np.empty(c0.shape[0])
+    for r in range(X.shape[0]):
+        _pre_dense(Ct, B, c0, X[r], V[r], z)
+        _post(a, g, X[r], z, out[r])
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def dense_tangent_batch(Ct, B, c0, a, g, X, V, E, out, Eout):
+    """tangent_batch for a dense C given as Ct = C^T."""
+    m = c0.shape[0]
+    k = E.shape[2]
+    z = np.empty(m)
+    s = np.empty(m)
+    ce = np.empty(m)
+    for r in range(X.shape[0]):
+        _pre_dense(Ct, B, c0, X[r], V[r], z)
+        for i in range(m):
+            t = tanh1(z[i])
+            out[r, i] = a[i] * X[r, i] + g[i] * t
+            s[i] = g[i] * (1.0 - t * t)
+        for j in range(k):
+            for i in range(m):
+                ce[i] = 0.0
+            for q in range(m):
+                e = E[r, q, j]
+                for i in range(m):
+                    ce[i] += e * Ct[q, i]
+            for i in range(m):
+                Eout[r, i, j] = a[i] * E[r, i, j] + s[i] * ce[i]

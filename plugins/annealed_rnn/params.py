@@ -44,8 +44,9 @@ class AnnealedRnnParams(FamilyParams):
     relaxation: Union[float, tuple[float, float]] = Field(
         (0.0, 0.9), description="initial relaxation a of x_t = a x_{t-1} + g tanh(...): a number, or [low, high] drawn per "
         "element (eq. 6.21: a in [0, 1))")
-    relaxation_gain: bool = Field(True, description="g = 1 - |a| (eq. 6.21; with sigma(C) < 1 the network is reliable) "
-                                                    "instead of g = 1 (eq. 6.27 / 6.38)")
+    relaxation_gain: bool = Field(True, description="g = 1 - |a| (eq. 6.21: every element's gain stays below 1) instead "
+                                                    "of g = 1 (eq. 6.27 / 6.38); check reliability with `dynmodel "
+                                                    "reliability-check`")
     step: float = Field(1.0, gt=0, description="std of a weight change at the initial temperature; it shrinks as T / T0 "
                                                 "(thesis 5.3.4: variance (T / T0)^2)")
     t0: float = Field(0.1, gt=0, description="initial temperature (scale of accepted relative NMSE increases)")

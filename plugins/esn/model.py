@@ -227,6 +227,24 @@ class EchoStateNetwork(Family):
         kernels.step_batch(*self.network_.kernel_args(), np.ascontiguousarray(X), np.ascontiguousarray(V), out)
         return out
 
+    def driven_system(self):
+        """The network as a driven system (model space). External mode: the open loop, driven by
+        the input and the fed-back output, with the readout as its closed loop (thesis 5.3.2)."""
+        from dynmodel.reliability.networks import LinearFeedback, SigmoidNetwork
+        from dynmodel.reliability.system import InputDomain
+
+        self.check_fitted()
+        net = self.network_
+        names = [f"u{j}" for j in range(net.B_in.shape[1])]
+        closed = None
+        if self.external:
+            names += [f"y{k}" for k in range(self.n_outputs_)]
+            closed = LinearFeedback(self.W_, self.D_, self.w0_, self.params.tune_in, self.y_rest_, net.C, net.B_back)
+        # model space: standard-scaled signals mostly lie within +-2
+        inputs = InputDomain.from_range(names, -2 * np.ones(len(names)), 2 * np.ones(len(names)))
+        return SigmoidNetwork(net.C, net.B, net.c0, net.a, net.g, inputs, closed, name="esn",
+                              description=f"echo state network, {net.size} elements, {self.params.mode} mode")
+
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         net = self.network_

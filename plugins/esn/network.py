@@ -7,9 +7,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from dynmodel.reliability.evidence import largest_singular_value, spectral_radius
+
 from .params import EsnParams
 
-_DENSE_LIMIT = 2000
+__all__ = ["Network", "build_network", "largest_singular_value", "spectral_radius"]
 
 
 @dataclass
@@ -35,22 +37,6 @@ class Network:
         C = self.C
         return (C.indptr.astype(np.int64), C.indices.astype(np.int64), C.data.astype(np.float64),
                 np.ascontiguousarray(self.B), self.c0, self.a, self.g)
-
-
-def largest_singular_value(C: sp.spmatrix) -> float:
-    if C.nnz == 0:
-        return 0.0
-    if C.shape[0] <= _DENSE_LIMIT:
-        return float(np.linalg.norm(C.toarray(), 2))
-    return float(sp.linalg.svds(C.astype(np.float64), k=1, return_singular_vectors=False)[0])
-
-
-def spectral_radius(C: sp.spmatrix) -> float:
-    if C.nnz == 0:
-        return 0.0
-    if C.shape[0] <= _DENSE_LIMIT:
-        return float(np.max(np.abs(np.linalg.eigvals(C.toarray()))))
-    return float(np.abs(sp.linalg.eigs(C.astype(np.float64), k=1, which="LM", return_eigenvectors=False)[0]))
 
 
 def _sparse_normal(rng: np.random.Generator, shape: tuple[int, int], p: float, std: float,

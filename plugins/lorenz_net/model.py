@@ -20,7 +20,7 @@ from dynmodel.anneal import Schedule, anneal
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Family, Progress, Simulation, no_progress
 
-from .elements import simulate_network, step_elements
+from .elements import simulate_network
 from .params import LorenzNetParams
 from .search import Evaluator, LorenzState, initial_state, make_moves
 
@@ -103,14 +103,17 @@ class LorenzNet(Family):
         bad = np.flatnonzero(~np.isfinite(y).all(axis=1))
         return Simulation(y, int(bad[0]) if bad.size else None)
 
-    def state_update(self, X: np.ndarray, V: np.ndarray) -> np.ndarray:
-        """One sampling interval for many replicas: X (R, 3M), V (R, n_inputs)."""
-        R = X.shape[0]
-        m = self.element_params_.shape[0]
-        out = np.empty((R, m, 3))
-        step_elements(self.element_params_, self.C_, self.B_, np.ascontiguousarray(X.reshape(R, m, 3)),
-                      np.ascontiguousarray(V), self.dt_, self.params.substeps, out)
-        return out.reshape(R, 3 * m)
+    def driven_system(self):
+        """The network as a driven system in model space, for the reliability check."""
+        from dynmodel.reliability.system import InputDomain
+
+        from .system import LorenzNetworkSystem
+
+        self.check_fitted()
+        names = [f"u{j}" for j in range(self.n_inputs_)]
+        # model space: the fitted data's inputs; standard-scaled signals mostly lie within +-2
+        inputs = InputDomain.from_range(names, -2 * np.ones(len(names)), 2 * np.ones(len(names)))
+        return LorenzNetworkSystem(self.element_params_, self.C_, self.B_, self.dt_, self.params.substeps, inputs)
 
     def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         arrays = {"element_params": self.element_params_, "C": self.C_, "B": self.B_, "layer": self.layer_,
