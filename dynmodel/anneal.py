@@ -11,6 +11,9 @@ seen is kept; Ctrl-C stops the run and returns it.
 from __future__ import annotations
 
 import math
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Callable, Generic, TypeVar
 
@@ -97,3 +100,30 @@ def anneal(state: S, score: float, objective: Callable[[S], float], moves: list[
     except KeyboardInterrupt:
         interrupted = True
     return AnnealResult(best, best_score, history, interrupted)
+
+
+R = TypeVar("R")
+
+
+def run_restarts(search: Callable[[int, np.random.Generator, threading.Event], R], restarts: int, workers: int,
+                 rng: np.random.Generator) -> list[R]:
+    """Run ``search(k, rng_k, halt)`` for k = 0 .. restarts-1 with independent random streams,
+    in up to ``workers`` threads (0: one per core); compiled kernels release the GIL. Results do
+    not depend on the number of threads. Ctrl-C sets ``halt``: every run should then stop and
+    return its best state so far."""
+    seeds = rng.spawn(restarts)
+    halt = threading.Event()
+    n = min(restarts, workers or os.cpu_count() or 1)
+    if n <= 1:
+        try:
+            return [search(k, seeds[k], halt) for k in range(restarts)]
+        except KeyboardInterrupt:
+            halt.set()
+            raise
+    with ThreadPoolExecutor(n) as pool:
+        futures = [pool.submit(search, k, seeds[k], halt) for k in range(restarts)]
+        try:
+            return [f.result() for f in futures]
+        except KeyboardInterrupt:
+            halt.set()
+            return [f.result() for f in futures]

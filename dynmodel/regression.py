@@ -130,6 +130,34 @@ class FosPath:
     best: int  # number of terms kept
 
 
+class _Stopper:
+    """The stopping rule shared by both FOS variants: with a validation pool, the number of terms
+    with the lowest validation error, searched until ``patience`` terms bring no new lowest
+    (thesis A.3); without one, every selected term is kept."""
+
+    def __init__(self, Pv: np.ndarray | None, yv: np.ndarray | None, patience: int):
+        self.Pv, self.yv, self.patience = Pv, yv, patience
+        self.errors: list[float] = []
+        self.best_m, self.best_val, self.since_best = 0, np.inf, 0
+
+    def add(self, order: list[int], coef: np.ndarray, forced: bool) -> bool:
+        """Record the model with ``order`` terms; True when the search should stop."""
+        if self.Pv is None or self.yv is None:
+            self.best_m = len(order)
+            return False
+        err = float(np.mean((self.yv - self.Pv[:, order] @ coef) ** 2))
+        self.errors.append(err)
+        if err < self.best_val * (1 - 1e-12) or forced:
+            self.best_val, self.best_m, self.since_best = err, len(order), 0
+            return False
+        self.since_best += 1
+        return self.since_best >= self.patience
+
+    def path(self, order: list[int], coef_path: list[np.ndarray], Q: np.ndarray) -> "FosPath":
+        return FosPath(np.array(order, dtype=np.int64), coef_path, Q[:len(order)],
+                       np.array(self.errors) if self.errors else None, self.best_m)
+
+
 def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ...] = (),
                max_terms: int | None = None, threshold: float | None = None,
                Pv: np.ndarray | None = None, yv: np.ndarray | None = None, patience: int = 1,
@@ -161,8 +189,7 @@ def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ..
     available = diag > 0
     order: list[int] = []
     coef_path: list[np.ndarray] = []
-    val_err: list[float] = []
-    best_m, best_val, since_best = 0, np.inf, 0
+    stopper = _Stopper(Pv, yv, patience)
     for m in range(limit):
         if m > 0:
             prev = order[-1]
@@ -194,19 +221,9 @@ def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ..
         A = np.eye(m + 1) + np.tril(alpha[:m + 1, :m + 1], -1)
         coef = _solve_unit_upper(A.T, beta)
         coef_path.append(coef)
-        if Pv is not None and yv is not None:
-            err = float(np.mean((yv - Pv[:, order] @ coef) ** 2))
-            val_err.append(err)
-            if err < best_val * (1 - 1e-12) or m < len(forced):
-                best_val, best_m, since_best = err, m + 1, 0
-            else:
-                since_best += 1
-                if since_best >= patience:
-                    break
-        else:
-            best_m = m + 1
-    return FosPath(np.array(order, dtype=np.int64), coef_path, Q[:len(order)],
-                   np.array(val_err) if val_err else None, best_m)
+        if stopper.add(order, coef, m < len(forced)):
+            break
+    return stopper.path(order, coef_path, Q)
 
 
 def fos_select_qr(R: np.ndarray, z: np.ndarray, yy: float, *, forced: tuple[int, ...] = (),
@@ -233,8 +250,7 @@ def fos_select_qr(R: np.ndarray, z: np.ndarray, yy: float, *, forced: tuple[int,
     order: list[int] = []
     coef_path: list[np.ndarray] = []
     Q = np.zeros(limit)
-    val_err: list[float] = []
-    best_m, best_val, since_best = 0, np.inf, 0
+    stopper = _Stopper(Pv, yv, patience)
     for m in range(limit):
         d = np.einsum("ij,ij->j", V, V)
         valid = available & (d > tol * np.maximum(norm0, 1e-300)) & (d > 0)
@@ -262,19 +278,9 @@ def fos_select_qr(R: np.ndarray, z: np.ndarray, yy: float, *, forced: tuple[int,
         U = T[:m + 1][:, order]  # upper triangular: the chosen columns = Q_sel U
         coef = scipy.linalg.solve_triangular(U, beta[:m + 1])
         coef_path.append(coef)
-        if Pv is not None and yv is not None:
-            err = float(np.mean((yv - Pv[:, order] @ coef) ** 2))
-            val_err.append(err)
-            if err < best_val * (1 - 1e-12) or m < len(forced):
-                best_val, best_m, since_best = err, m + 1, 0
-            else:
-                since_best += 1
-                if since_best >= patience:
-                    break
-        else:
-            best_m = m + 1
-    return FosPath(np.array(order, dtype=np.int64), coef_path, Q[:len(order)],
-                   np.array(val_err) if val_err else None, best_m)
+        if stopper.add(order, coef, m < len(forced)):
+            break
+    return stopper.path(order, coef_path, Q)
 
 
 def _solve_unit_upper(U: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -11,15 +11,13 @@ prediction, persistence and the reliability hooks are those of the `esn` family.
 """
 from __future__ import annotations
 
-import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
-from dynmodel.anneal import Schedule, anneal
+from dynmodel.anneal import Schedule, anneal, run_restarts
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Progress, no_progress
 from dynmodel_plugins.esn.model import EchoStateNetwork
@@ -98,19 +96,8 @@ class AnnealedRnn(EchoStateNetwork):
                                  f"best validation NMSE {100 * best:.4g} %")
             return report
 
-        seeds = rng.spawn(p.restarts)
-        workers = min(p.restarts, p.workers or os.cpu_count() or 1)
-        halt = threading.Event()  # Ctrl-C: every run stops and returns its best network so far
-        if workers > 1:
-            with ThreadPoolExecutor(workers) as pool:
-                futures = [pool.submit(self._search, data, drives, seeds[k], reporter(k), halt) for k in range(p.restarts)]
-                try:
-                    runs = [f.result() for f in futures]
-                except KeyboardInterrupt:
-                    halt.set()
-                    runs = [f.result() for f in futures]
-        else:
-            runs = [self._search(data, drives, seeds[k], reporter(k), halt) for k in range(p.restarts)]
+        runs = run_restarts(lambda k, seed, halt: self._search(data, drives, seed, reporter(k), halt),
+                            p.restarts, p.workers, rng)
         k_best = int(np.argmin([r[1] for r in runs]))
         best, score, stages, _ = runs[k_best]
         self.search_ = {"restarts": [{"validation_nmse": 100 * r[1], "stages": r[2]} for r in runs], "best_run": k_best,

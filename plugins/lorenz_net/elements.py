@@ -22,6 +22,20 @@ def _rhs(x1, x2, x3, v, s, r, b, a):
     return a * s * (v - x1), a * (r * x1 - x2 - x1 * x3), a * (x1 * x2 - b * x3)
 
 
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
+def _interval(x1, x2, x3, v, s, r, b, a, h, substeps):
+    """``substeps`` RK4 steps of size h with the drive v held."""
+    for _ in range(substeps):
+        k1a, k1b, k1c = _rhs(x1, x2, x3, v, s, r, b, a)
+        k2a, k2b, k2c = _rhs(x1 + 0.5 * h * k1a, x2 + 0.5 * h * k1b, x3 + 0.5 * h * k1c, v, s, r, b, a)
+        k3a, k3b, k3c = _rhs(x1 + 0.5 * h * k2a, x2 + 0.5 * h * k2b, x3 + 0.5 * h * k2c, v, s, r, b, a)
+        k4a, k4b, k4c = _rhs(x1 + h * k3a, x2 + h * k3b, x3 + h * k3c, v, s, r, b, a)
+        x1 += h / 6.0 * (k1a + 2.0 * k2a + 2.0 * k3a + k4a)
+        x2 += h / 6.0 * (k1b + 2.0 * k2b + 2.0 * k3b + k4b)
+        x3 += h / 6.0 * (k1c + 2.0 * k2c + 2.0 * k3c + k4c)
+    return x1, x2, x3
+
+
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
 def integrate_element(sigma, r, b, alpha, v, dt, substeps, x0, out):
     """States (n, 3) of one element driven by v (n,), from x0; returns the first non-finite
@@ -29,15 +43,7 @@ def integrate_element(sigma, r, b, alpha, v, dt, substeps, x0, out):
     h = dt / substeps
     x1, x2, x3 = x0[0], x0[1], x0[2]
     for t in range(v.shape[0]):
-        vt = v[t]
-        for _ in range(substeps):
-            k1a, k1b, k1c = _rhs(x1, x2, x3, vt, sigma, r, b, alpha)
-            k2a, k2b, k2c = _rhs(x1 + 0.5 * h * k1a, x2 + 0.5 * h * k1b, x3 + 0.5 * h * k1c, vt, sigma, r, b, alpha)
-            k3a, k3b, k3c = _rhs(x1 + 0.5 * h * k2a, x2 + 0.5 * h * k2b, x3 + 0.5 * h * k2c, vt, sigma, r, b, alpha)
-            k4a, k4b, k4c = _rhs(x1 + h * k3a, x2 + h * k3b, x3 + h * k3c, vt, sigma, r, b, alpha)
-            x1 += h / 6.0 * (k1a + 2.0 * k2a + 2.0 * k3a + k4a)
-            x2 += h / 6.0 * (k1b + 2.0 * k2b + 2.0 * k3b + k4b)
-            x3 += h / 6.0 * (k1c + 2.0 * k2c + 2.0 * k3c + k4c)
+        x1, x2, x3 = _interval(x1, x2, x3, v[t], sigma, r, b, alpha, h, substeps)
         out[t, 0] = x1
         out[t, 1] = x2
         out[t, 2] = x3
@@ -60,16 +66,8 @@ def step_elements(params, C, B, X, U, dt, substeps, out):
             for j in range(i):
                 if C[i, j] != 0.0:
                     v += C[i, j] * out[rep, j, 1] / params[j, 1]
-            s, r, b, a = params[i, 0], params[i, 1], params[i, 2], params[i, 3]
-            x1, x2, x3 = X[rep, i, 0], X[rep, i, 1], X[rep, i, 2]
-            for _ in range(substeps):
-                k1a, k1b, k1c = _rhs(x1, x2, x3, v, s, r, b, a)
-                k2a, k2b, k2c = _rhs(x1 + 0.5 * h * k1a, x2 + 0.5 * h * k1b, x3 + 0.5 * h * k1c, v, s, r, b, a)
-                k3a, k3b, k3c = _rhs(x1 + 0.5 * h * k2a, x2 + 0.5 * h * k2b, x3 + 0.5 * h * k2c, v, s, r, b, a)
-                k4a, k4b, k4c = _rhs(x1 + h * k3a, x2 + h * k3b, x3 + h * k3c, v, s, r, b, a)
-                x1 += h / 6.0 * (k1a + 2.0 * k2a + 2.0 * k3a + k4a)
-                x2 += h / 6.0 * (k1b + 2.0 * k2b + 2.0 * k3b + k4b)
-                x3 += h / 6.0 * (k1c + 2.0 * k2c + 2.0 * k3c + k4c)
+            x1, x2, x3 = _interval(X[rep, i, 0], X[rep, i, 1], X[rep, i, 2], v, params[i, 0], params[i, 1],
+                                   params[i, 2], params[i, 3], h, substeps)
             out[rep, i, 0] = x1
             out[rep, i, 1] = x2
             out[rep, i, 2] = x3

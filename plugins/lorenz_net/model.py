@@ -8,15 +8,13 @@ the couplings) are adapted by simulated annealing on the validation NMSE.
 """
 from __future__ import annotations
 
-import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 
 from dynmodel import regression
-from dynmodel.anneal import Schedule, anneal
+from dynmodel.anneal import Schedule, anneal, run_restarts
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Family, Progress, Simulation, no_progress
 
@@ -64,19 +62,7 @@ class LorenzNet(Family):
                                  f"run {k + 1}/{p.restarts}, T = {temperature:.3g}, best validation NMSE {100 * best:.4g} %")
             return report
 
-        seeds = rng.spawn(p.restarts)
-        halt = threading.Event()
-        workers = min(p.restarts, p.workers or os.cpu_count() or 1)
-        if workers > 1:
-            with ThreadPoolExecutor(workers) as pool:
-                futures = [pool.submit(self._search, data, seeds[k], reporter(k), halt) for k in range(p.restarts)]
-                try:
-                    runs = [f.result() for f in futures]
-                except KeyboardInterrupt:
-                    halt.set()
-                    runs = [f.result() for f in futures]
-        else:
-            runs = [self._search(data, seeds[k], reporter(k), halt) for k in range(p.restarts)]
+        runs = run_restarts(lambda k, seed, halt: self._search(data, seed, reporter(k), halt), p.restarts, p.workers, rng)
         best = int(np.argmin([r[1] for r in runs]))
         state = runs[best][0]
         self.search_ = {"restarts": [r[2] for r in runs], "best_run": best}
