@@ -78,7 +78,7 @@ class NoiseSpec(StrictModel):
 
     std: float = Field(ge=0.0, description="noise std as a fraction of the clean output std")
     splits: list[SplitName] = Field(default_factory=lambda: ["train", "validation"])
-    seed: Optional[int] = Field(None, description="noise seed; default derived from the spec seed")
+    seed: Optional[int] = Field(None, ge=0, description="noise seed; default derived from the spec seed")
 
 
 class FileSourceFields(StrictModel):
@@ -106,7 +106,7 @@ class SeparateSource(StrictModel):
     generator: Optional[str] = None
     params: Optional[dict[str, Any]] = None
     n: Optional[int] = Field(None, gt=0)
-    seed: Optional[int] = None
+    seed: Optional[int] = Field(None, ge=0)
 
 
 class DataCommon(StrictModel):
@@ -155,7 +155,7 @@ def _generator_data_model(name: str, gen: Any) -> type[BaseModel]:
         generator=(Literal[name], Field(description=getattr(gen, "description", ""))),
         params=(params_model, Field(default_factory=params_model)),
         n=(int, Field(10000, gt=0, description="number of samples")),
-        seed=(int, Field(0, description="seed of this realization")),
+        seed=(int, Field(0, ge=0, description="seed of this realization")),
         input=(Optional[list[str]], Field(None, description=f"generated inputs: {list(gen.input_names)}")),
         output=(Optional[list[str]], Field(None, description=f"generated outputs: {list(gen.output_names)}")),
         sampling_time=(Optional[float], Field(None, gt=0, description="taken from the generator when omitted")),
@@ -198,7 +198,7 @@ def spec_model() -> type[BaseModel]:
         model: ModelSpec  # type: ignore[valid-type]
         cost: Literal["mse1", "mse_inf"] = Field("mse1", description="mse1: one-step error; mse_inf: free-running error")
         evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec)
-        seed: int = Field(0, description="seed of every random choice in fitting (networks, noise)")
+        seed: int = Field(0, ge=0, description="seed of every random choice in fitting (networks, noise)")
         output: Optional[str] = Field(None, description="model file (HDF5); default <name>.h5 next to the spec")
 
         _base_dir: Path = PrivateAttr(default_factory=Path.cwd)

@@ -71,6 +71,18 @@ def test_nan_and_inf_are_located(tmp_path, columns):
     assert "column 'y' has NaN at sample 17 (2 non-finite values" in str(info.value)
 
 
+def test_empty_cells_empty_files_and_folders_are_named(tmp_path):
+    (tmp_path / "gap.csv").write_text("u,y\n1,2\n3,\n")
+    with pytest.raises(DataError, match="column 'y' has no value at line 3 \\(sample 1\\)"):
+        read_columns(tmp_path / "gap.csv", ["u", "y"])
+    (tmp_path / "head.csv").write_text("u,y\n")
+    with pytest.raises(DataError, match="header row but no samples"):
+        read_columns(tmp_path / "head.csv", ["u", "y"])
+    (tmp_path / "folder.csv").mkdir()
+    with pytest.raises(DataError, match="is not a file"):
+        read_columns(tmp_path / "folder.csv", ["u"])
+
+
 def test_text_cell_that_is_not_a_number(tmp_path):
     (tmp_path / "d.csv").write_text("u,y\n1,2\n3,abc\n")
     with pytest.raises(DataError, match="'abc' at line 3"):

@@ -92,6 +92,8 @@ def read_text(path: Path, selectors: Sequence[str | int], header: bool = True,
             raise DataError(f"data.columns names {len(columns)} columns but the file has {width}",
                             str(path), f"give exactly {width} names")
         body = lines
+    if not body:
+        raise DataError("the file has a header row but no samples", str(path), "check the file")
     index: dict[str, int] = {}
     for i, nm in enumerate(names):
         index.setdefault(nm, i)
@@ -110,8 +112,11 @@ def read_text(path: Path, selectors: Sequence[str | int], header: bool = True,
         cells = split(line)
         for key, col in wanted:
             text = cells[col].strip() if col < len(cells) else ""
+            if not text:
+                raise DataError(f"column '{key}' has no value at line {row + first_data_line} (sample {row})",
+                                str(path), "fill or remove that line")
             try:
-                out[key][row] = float(text) if text else np.nan
+                out[key][row] = float(text)
             except ValueError:
                 raise DataError(
                     f"column '{key}' holds '{text}' at line {row + first_data_line}, which is not a number",
@@ -176,6 +181,8 @@ def read_columns(path: Path, selectors: Sequence[str | int], *, header: bool = T
     if not path.exists():
         raise DataError("file not found", str(path),
                         "check data.path (relative paths resolve against the spec file's folder)")
+    if not path.is_file():
+        raise DataError("is not a file", str(path), "point data.path to a data file")
     suffix = path.suffix.lower()
     if suffix in TEXT_SUFFIXES:
         cols = read_text(path, selectors, header=header, columns=columns, delimiter=delimiter)
