@@ -467,18 +467,20 @@ def _print_diagnosis(result) -> None:
     out.print(f"[bold]{result.name}[/]: {base.spec.model.family} (cost {base.spec.cost}) diagnosed in "
               f"{result.seconds:.1f} s; model memory {result.rounds[0].memory} samples")
     out.print(metrics_table(base.metrics, "baseline free run"))
-    table = Table(title="checks (significant first, by score)", title_justify="left")
-    for col, kw in (("cause", {}), ("named", {}), ("score", {"justify": "right"}), ("p", {"justify": "right"}),
-                    ("evidence", {})):
+    table = Table(title="checks (significant first, by score: share of the residual's mean square)",
+                  title_justify="left")
+    for col, kw in (("cause", {}), ("significant", {}), ("score", {"justify": "right"}), ("p", {"justify": "right"})):
         table.add_column(col, **kw)
     for f in result.checks:
         p = f.evidence.get("p_value")
-        table.add_row(f.cause, "yes" if f.significant else "", f"{f.score:.3g}", "-" if p is None else f"{p:.2g}",
-                      escape(f.summary))
+        table.add_row(f.cause, "yes" if f.significant else "", f"{f.score:.3g}",
+                      "-" if p is None else ("<1e-16" if p < 1e-16 else f"{p:.2g}"))
     out.print(table)
     if not result.findings:
         out.print("[green]adequate[/]: no cause is significant; nothing to extend")
         return
+    for i, f in enumerate(result.findings, 1):
+        out.print(f"{i}. [bold]{f.cause}[/]: {escape(f.summary)}")
     top = result.findings[0]
     out.print(f"named cause: [bold]{top.cause}[/]")
     for rnd in result.rounds:
@@ -495,7 +497,11 @@ def _print_diagnosis(result) -> None:
         unc = unc["per_output"][0] if "per_output" in unc else unc
         rr = unc.get("relative_reduction") or {}
         spread = f" ± {100 * rr['std']:.1f} %" if rr.get("std") is not None else ""
-        out.print(f"test NMSE {_fmt(before) if before is not None else 'diverged'} % -> {_fmt(after)} %"
+        def shown(v, diverged):
+            return "diverged" if diverged else f"{_fmt(v)} %"
+
+        out.print(f"test NMSE {shown(before, g.get('baseline_diverged_on_test'))} -> "
+                  f"{shown(after, g.get('extended_diverged_on_test'))}"
                   + (f" (reduction {100 * red:.1f} %{spread})" if red is not None else "")
                   + f"; test MAX {_fmt(g.get('test_max_before'))} -> {_fmt(g.get('test_max_after'))}")
 

@@ -9,7 +9,6 @@ without one, the last 30 % of every segment).
 """
 from __future__ import annotations
 
-import zlib
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -171,10 +170,6 @@ class Context:
         s = self.settings
         effect = share * self.mse(k) / max(self.output_var(k), np.finfo(float).tiny)
         return bool(p_value < s.alpha and share >= s.min_share and effect >= s.min_effect)
-
-    def rng(self, name: str) -> np.random.Generator:
-        """A generator for one detector, derived from the diagnosis seed and the detector's name."""
-        return np.random.default_rng([self.settings.seed, zlib.crc32(name.encode())])
 
     @property
     def max_lag(self) -> int:

@@ -7,16 +7,17 @@ out-of-sample share of the base predictor's error that F removes,
 
     share = 1 - sum r1^2 / sum r0^2      (check rows; at most 1, negative when F only adds noise),
 
-and a one-sided signed-rank test on contiguous batch means of d_t = r0_t^2 - r1_t^2 (valid under
-the strong serial correlation of free-run residuals, see :func:`.bootstrap.batch_means_test`). Fitting and judging on different samples
-protects against the spurious fits of slow features to slow residuals, and unlike a test that
-shifts or permutes the residual it stays valid, and keeps its power, for periodic experiments
-(a relation learnt on some strokes must predict the next ones). Features that add nothing make
-r1 slightly worse than r0 out of sample. Measured on a true null (white residual, slow features
-of an independent input) the p-value falls below 0.001 in about 1 % of the runs: the detectors'
-effect-size floors, not alpha alone, keep false alarms rare (see the README's calibration).
-(Fitting on the validation split and judging on the training split as a second fold was tried
-and dropped: time terms fitted on the short split extrapolate badly and fake large shares.)
+and a one-sided signed-rank test on contiguous batch means of d_t = r0_t^2 - r1_t^2 (valid under the
+strong serial correlation of free-run residuals, see :func:`.bootstrap.batch_means_test`). Fitting
+and judging on different samples protects against the spurious fits of slow features to slow
+residuals, and unlike a test that shifts or permutes the residual it stays valid, and keeps its
+power, for periodic experiments (a relation learnt on some strokes must predict the next ones).
+Features that add nothing make r1 slightly worse than r0 out of sample. Measured on a true null
+(white residual, slow features of an independent input) the p-value falls below 0.001 in about 1 %
+of the runs: the detectors' effect-size floors, not alpha alone, keep false alarms rare (see the
+README's calibration). (Fitting on the validation split and judging on the training split as a
+second fold was tried and dropped: time terms fitted on the short split extrapolate badly and fake
+large shares.)
 """
 from __future__ import annotations
 

@@ -16,7 +16,7 @@ from .fitting import Fit
 from .spectrum import welch
 
 Z99 = float(stats.norm.isf(0.005))
-DPI = 100
+DPI = 80
 
 
 def _main_recording(fit: Fit) -> int:
@@ -239,7 +239,8 @@ def before_after(path: Path, base: Fit, final: Fit, gain: dict[str, Any]) -> Non
         ax.plot(t, r.y[a + w0:a + w1, 0], color="#333333", lw=1.0, label="measured")
         ax.plot(t, base.runs[rec].y[a + w0:a + w1, 0], color="#d62728", lw=1.0, ls="--", label="baseline")
         ax.plot(t, final.runs[rec].y[a + w0:a + w1, 0], color="#2ca02c", lw=1.0, label="extended")
-        lim = _limits(r.y[a + w0:a + w1, 0])
+        lim = _limits(np.concatenate([r.y[a + w0:a + w1, 0], base.runs[rec].y[a + w0:a + w1, 0],
+                                      final.runs[rec].y[a + w0:a + w1, 0]]))
         if lim:
             ax.set_ylim(*lim)
         ax.set_xlabel("time (s)")

@@ -14,7 +14,7 @@ from ..data import load_dataset
 from ..data.dataset import Dataset
 from ..family import Progress, no_progress
 from ..model import FittedModel, Run
-from . import patch as patch_mod
+from ..spec import validate_spec
 
 #: data keys that only change the preprocessing, not the loaded recordings
 PREPROCESSING_KEYS = ("delay_lines", "derived_inputs", "detrend", "scaling")
@@ -69,7 +69,7 @@ class Fitter:
         return json.dumps([data, seed], sort_keys=True)
 
     def validate(self, raw: dict[str, Any]):
-        return patch_mod.validate_spec(raw, self.source, self.base_dir)
+        return validate_spec(raw, self.source, self.base_dir)
 
     def fit(self, raw: dict[str, Any], seed: int | None = None, label: str = "") -> Fit:
         """Fit the spec mapping ``raw`` (with another seed if given); cached by content."""

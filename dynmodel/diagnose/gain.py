@@ -22,10 +22,9 @@ def _test_metric(fit: Fit, metric: str) -> float | None:
 
 
 def _reduction(before: float | None, after: float | None) -> float | None:
-    if after is None:
+    """1 - after / before; None when either diverged (no ratio of a finite and an infinite error is a gain)."""
+    if after is None or before is None:
         return None
-    if before is None:
-        return 1.0  # the baseline diverged on the test split; the extension does not
     return float(1.0 - after / before) if before > 0 else None
 
 
@@ -44,6 +43,7 @@ def measure_gain(fitter: Fitter, base: Fit, final: Fit, settings) -> dict[str, A
         "test_nmse_before": before, "test_nmse_after": after, "relative_reduction": _reduction(before, after),
         "test_max_before": _test_metric(base, "max"), "test_max_after": _test_metric(final, "max"),
         "baseline_diverged_on_test": bool((base.metrics.get("test") or {}).get("unstable_from")),
+        "extended_diverged_on_test": bool((final.metrics.get("test") or {}).get("unstable_from")),
     }
     if "test" not in base.metrics:
         gain["note"] = "the spec has no test split; give data.split.test or data.test to measure the gain"

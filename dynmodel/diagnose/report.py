@@ -103,10 +103,15 @@ def _gain_lines(gain: dict[str, Any] | None) -> list[str]:
     before, after = gain.get("test_nmse_before"), gain.get("test_nmse_after")
     red = gain.get("relative_reduction")
     lines = [f"| | baseline | extended |", "|---|---|---|",
-             f"| test NMSE % | {_fmt(before) if before is not None else 'diverged'} | {_fmt(after)} |",
+             f"| test NMSE % | {'diverged' if gain.get('baseline_diverged_on_test') else _fmt(before)} | "
+             f"{'diverged' if gain.get('extended_diverged_on_test') else _fmt(after)} |",
              f"| test MAX | {_fmt(gain.get('test_max_before'))} | {_fmt(gain.get('test_max_after'))} |", ""]
     if red is not None:
         lines.append(f"Relative reduction of the test NMSE: **{100 * red:.1f} %**.")
+    elif gain.get("baseline_diverged_on_test") and not gain.get("extended_diverged_on_test"):
+        lines.append("The baseline's free run diverges on the test split; the extended model's stays finite.")
+    elif gain.get("extended_diverged_on_test"):
+        lines.append("The extended model's free run diverges on the test split too: no gain.")
     unc = gain.get("uncertainty") or {}
     if "per_output" in unc:
         unc = unc["per_output"][0]

@@ -1,10 +1,13 @@
 """The diagnosis loop: fit the baseline, run every detector, measure the proposed extensions, keep the
 best on validation, measure the gain on the held-out test split, and optionally go another round.
 
-An extension is measured by refitting the patched spec; candidates are compared on the free-run
-NMSE of the validation split (train when there is none), never on the test split, which only
-scores the chosen model. A round stops the loop when nothing is significant (adequate), when no
-candidate lowers the validation NMSE by at least ``MIN_GAIN`` (relative), or after ``rounds``.
+An extension is measured by refitting the patched spec; candidates are compared on the free-run NMSE
+of the validation split (train when there is none), never on the test split's outputs, which only
+score the chosen model. A candidate whose free run diverges on some recording's *input* (test
+recordings included: the divergence band comes from the training outputs, so this screen uses no
+measured test output) ranks after every candidate that stays stable. A round stops the loop when
+nothing is significant (adequate), when no candidate lowers the validation NMSE by at least
+``MIN_GAIN`` (relative), or after ``rounds``.
 """
 from __future__ import annotations
 
@@ -37,6 +40,14 @@ class Candidate:
 
     def score(self, split: str) -> float:
         return float("inf") if self.fit is None else self.fit.nmse(split)
+
+    @property
+    def diverges(self) -> bool:
+        """Does the free run leave the divergence band on any recording (inputs only decide this)?"""
+        return self.fit is None or any(r.diverged_at is not None for r in self.fit.runs)
+
+    def rank(self, split: str) -> tuple[bool, float]:
+        return self.diverges, self.score(split)
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"cause": self.cause, **self.extension.to_json()}
@@ -210,7 +221,7 @@ def diagnose(raw: dict[str, Any], source: str, base_dir: Path, settings: Setting
                     except DynmodelError as exc:
                         cand.error = exc.line()
                     rnd.candidates.append(cand)
-                best = min(rnd.candidates, key=lambda c: c.score(split))
+                best = min(rnd.candidates, key=lambda c: c.rank(split))
                 now, new = current.nmse(split), best.score(split)
                 if best.fit is None:
                     rnd.outcome = "every extension failed to fit"

@@ -1,17 +1,17 @@
 """Spectral peaks of a residual: Welch spectrum, a running-median background and a chi-square test.
 
-A Welch estimate P(f) with K half-overlapping Hann segments scatters around the true spectrum
-S(f) as S(f) chi2_nu / nu, nu = 2 K / (1 + 2 c^2) with c = 0.167 the overlap correlation of Hann
-windows at 50 % (Welch 1967). The background B(f) at bin k is the larger of two one-sided medians,
-of bins k-14..k-3 and of bins k+3..k+14 (the main lobe of a peak, +-2 bins, is left out), divided by
-the chi2_nu median (median bias): a peak must stand above both of its sides, so a knee or a broad
-bump of a smooth spectrum is not taken for one. Under a smooth spectrum P(f) / B(f) is at most an
-F law: chi2_nu / nu over the scatter of one side's median, whose degrees of freedom are those of its
-12 bins (adjacent Hann bins are correlated, so half of them count) times the efficiency of a median
-(2 / pi); taking the larger side makes the test conservative. The largest ratio over m bins is significant at level alpha when its F tail is below
-alpha / m (Bonferroni). The peak frequency is then refined on a spectrum with four times the
-resolution (longer Welch segments, within 1.5 coarse bins of the peak) by a parabola through log P
-at its maximum and the two neighbouring bins.
+A Welch estimate P(f) with K half-overlapping Hann segments scatters around the true spectrum S(f)
+as S(f) chi2_nu / nu, nu = 2 K / (1 + 2 c^2) with c = 0.167 the overlap correlation of Hann windows
+at 50 % (Welch 1967). The background B(f) at bin k is the larger of two one-sided medians, of bins
+k-14..k-3 and of bins k+3..k+14 (the main lobe of a peak, +-2 bins, is left out), divided by the
+chi2_nu median (median bias): a peak must stand above both of its sides, so a knee or a broad bump
+of a smooth spectrum is not taken for one. Under a smooth spectrum P(f) / B(f) is at most an F law:
+chi2_nu / nu over the scatter of one side's median, whose degrees of freedom are those of its 12
+bins (adjacent Hann bins are correlated, so half of them count) times the efficiency of a median (2
+/ pi); taking the larger side makes the test conservative. The largest ratio over m bins is
+significant at level alpha when its F tail is below alpha / m (Bonferroni). The peak frequency is
+then refined on a spectrum with four times the resolution (longer Welch segments, within 1.5 coarse
+bins of the peak) by a parabola through log P at its maximum and the two neighbouring bins.
 """
 from __future__ import annotations
 

@@ -2,12 +2,12 @@
 
 Both the input and the residual are prewhitened by the input's AR filter (order by AIC), so the
 cross-correlation r(k) = corr(e_t, u_{t-k}) of independent series has standard deviation s
-(Bartlett's formula, about 1/sqrt(n_k) with n_k pairs at lag k). Lags from the model's memory M + 1 (the largest lag at which
-an input impulse still moves the model's output by 1 %) up to the search horizon are scanned; the
-largest |r(k)| / s is significant when it beats the Sidak bound for that many lags at level alpha
-(per lag, the 99 % bound is 2.576 s). Score: the share of the residual's mean square that the raw
-input at lags k-2 .. k+2 explains beyond the input at the lags the model already sees (and beyond a
-drift: two slow functions of time).
+(Bartlett's formula, about 1/sqrt(n_k) with n_k pairs at lag k). Lags from the model's memory M + 1
+(the largest lag at which an input impulse still moves the model's output by 1 %) up to the search
+horizon are scanned; the largest |r(k)| / s is significant when it beats the Sidak bound for that
+many lags at level alpha (per lag, the 99 % bound is 2.576 s). Score: the share of the residual's
+mean square that the raw input at lags k-2 .. k+2 explains beyond the input at the lags the model
+already sees (and beyond a drift: two slow functions of time).
 """
 from __future__ import annotations
 
@@ -22,6 +22,7 @@ from dynmodel.diagnose.detector import Detector, Extension, Finding
 from ._extend import NARX, with_inputs
 
 Z99 = float(stats.norm.isf(0.005))
+MIN_LAGS = 10
 
 
 class MissingDelay(Detector):
@@ -32,8 +33,8 @@ class MissingDelay(Detector):
     def detect(self, ctx: Context) -> Finding | None:
         memory = ctx.memory
         max_lag = ctx.max_lag
-        if memory + 1 > max_lag:
-            return None
+        if max_lag - memory < MIN_LAGS:
+            return None  # the model remembers (nearly) the whole search horizon
         best = None
         for j in range(len(ctx.input_names)):
             u_segs = ctx.inputs(j)

@@ -1,14 +1,14 @@
-"""direction-dependence: the residual depends on the direction of motion of an input, or on how far
-it moved since the last reversal (hysteresis, Coulomb friction; thesis 6.1-6.3).
+"""direction-dependence: the residual depends on the direction of motion of an input, or on how far it
+moved since the last reversal (hysteresis, Coulomb friction; thesis 6.1-6.3).
 
-For an input that moves like a position (fewer than one reversal per 20 samples; the direction of
-a noise-like input means nothing), d_t = +-1 is its direction of motion (reversal once it moved
-back by more than 0.5 % of its range) and s_t = |u_t - u_r| / range its travel since the last
-reversal. Test features: d, d s, d s^2, d exp(-s / 0.05), d exp(-s / 0.2); base features: the
-input's level u, u^2, u^3, u one and two samples back and two slow functions of time (level, rate and
-drift effects are not direction effects). Statistic: the out-of-sample incremental R^2 (fit on train, judged on validation) with its batch-means
-p-value (:mod:`dynmodel.diagnose.dependence`).
-Score: that share of the residual mean square.
+For an input that moves like a position (fewer than one reversal per 20 samples; the direction of a
+noise-like input means nothing), d_t = +-1 is its direction of motion (reversal once it moved back
+by more than 0.5 % of its range) and s_t = |u_t - u_r| / range its travel since the last reversal.
+Test features: d, d s, d s^2, d exp(-s / 0.05), d exp(-s / 0.2); base features: the input's level u,
+u^2, u^3, u one and two samples back and two slow functions of time (level, rate and drift effects
+are not direction effects). Statistic: the out-of-sample incremental R^2 (fit on train, judged on
+validation) with its batch-means p-value (:mod:`dynmodel.diagnose.dependence`). Score: that share of
+the residual mean square.
 """
 from __future__ import annotations
 
@@ -63,7 +63,7 @@ class DirectionDependence(Detector):
             for k in range(len(ctx.output_names)):
                 e = np.concatenate(ctx.residuals(k))
                 dep = holdout_share(e, base, F, check)
-                if best is None or dep.share > best[0].adjusted:
+                if best is None or dep.share > best[0].share:
                     best = (dep, j, k, count, deadband, d, e, span)
         if best is None:
             return None

@@ -1,14 +1,13 @@
 """sensor-drift: a slow trend in the residual that the input does not explain (thesis 6.2.2).
 
 The residual and the input are averaged over K = 60 blocks (L = n / 60 samples each), t being the
-time since the recording's start. Null
-model for the block means: one constant per recording plus the block means of every input, of
-its square and of the free run (everything the input explains at low frequency). Alternatives add
-a drift term: t, 1 - exp(-t / tau), or both, tau on a grid from 1/16 to 2 times the span. Serial
-correlation left between blocks is removed by a Cochrane-Orcutt transform (AR(1) coefficient of the
-alternative's block residuals); the drift terms are then tested with an F-test, the smallest
-p-value Bonferroni-corrected for the number of alternatives. Score: the variance of the fitted
-drift over the samples, as a share of the residual mean square.
+time since the recording's start. Null model for the block means: one constant per recording plus
+the block means of every input, of its square and of the free run (everything the input explains at
+low frequency). Alternatives add a drift term: t, 1 - exp(-t / tau), or both, tau on a grid from
+1/16 to 2 times the span. Serial correlation left between blocks is removed by a Cochrane-Orcutt
+transform (AR(1) coefficient of the alternative's block residuals); the drift terms are then tested
+with an F-test, the smallest p-value Bonferroni-corrected for the number of alternatives. Score: the
+variance of the fitted drift over the samples, as a share of the residual mean square.
 """
 from __future__ import annotations
 

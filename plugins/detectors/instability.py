@@ -3,11 +3,11 @@
 Divergence is the engine's own criterion (the run leaves the training output range widened by ten
 range widths); the evidence names the recording, sample and time. Without divergence, the run
 *grows* when it goes more than half a range width beyond the range of the measured output (every
-split: where the system itself never went); the score is then the share of the squared error
-made on those out-of-range samples. Third, the run *loses track* when it predicts the validation
-split (train without one) with at most a tenth of the output variance explained (NMSE >= 90 %) while the one-step
-prediction is at least ten times better: the feedback accumulates errors the model does not make
-one step ahead (thesis 3.1.4, 6.3.2); the score is then 1 - NMSE_1 / NMSE. Free runs cover
+split: where the system itself never went); the score is then the share of the squared error made on
+those out-of-range samples. Third, the run *loses track* when it predicts the validation split
+(train without one) with at most a tenth of the output variance explained (NMSE >= 90 %) while the
+one-step prediction is at least ten times better: the feedback accumulates errors the model does not
+make one step ahead (thesis 3.1.4, 6.3.2); the score is then 1 - NMSE_1 / NMSE. Free runs cover
 every split here: stability is a property of the model, and the thesis (6.3.2) judges it by running
 through the whole record.
 """

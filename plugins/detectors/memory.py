@@ -1,15 +1,14 @@
 """insufficient-memory: the residual depends on input history older than the model's memory.
 
-Test features: exponential moving averages of the input, m_t = (1 - 1/tau) m_{t-1} + u_t / tau,
-with tau = 2, 4, 8, ... times the model's memory M (M at least 2 samples; tau at most
-a twentieth of the longest segment, at most 8 values); base features: the input at up to 12 lags
-spread over 0 .. M (what the model already sees) and two slow functions of time (a drift is not input
-history, and a residual with a trend would make the shift test invalid: the test assumes a
-stationary residual). History slower than about a twentieth of the record looks like a trend and
-is, honestly, hard to tell from one. Statistic: the out-of-sample incremental R^2 (fit on train, judged on validation) with its batch-means
-p-value (:mod:`dynmodel.diagnose.dependence`). Score: that share of the
-residual mean square. The evidence names the time constant that explains
-most on its own beyond the short lags (a fine logarithmic grid over the same range).
+Test features: exponential moving averages of the input, m_t = (1 - 1/tau) m_{t-1} + u_t / tau, with
+tau = 2, 4, 8, ... times the model's memory M (M at least 2 samples; tau at most a twentieth of the
+longest segment, at most 8 values); base features: the input at up to 12 lags spread over 0 .. M
+(what the model already sees) and two slow functions of time (a drift is not input history).
+History slower than about a twentieth of the record looks like a trend and is, honestly, hard to
+tell from one. Statistic: the out-of-sample incremental R^2 (fit on train, judged on validation)
+with its batch-means p-value (:mod:`dynmodel.diagnose.dependence`). Score: that share of the
+residual mean square. The evidence names the time constant that explains most on its own beyond the
+short lags (a fine logarithmic grid over the same range).
 """
 from __future__ import annotations
 
@@ -62,7 +61,7 @@ class InsufficientMemory(Detector):
             for k in range(len(ctx.output_names)):
                 e = np.concatenate(ctx.residuals(k))
                 dep = holdout_share(e, base, F, check)
-                if best is None or dep.share > best[0].adjusted:
+                if best is None or dep.share > best[0].share:
                     best = (dep, j, k, base, F, e)
         dep, j, k, base, F, e = best
         grid = np.geomspace(taus[0], taus[-1], num=max(2, 6 * len(taus)))

@@ -4,10 +4,11 @@ Applies to models fitted with ``cost: mse1`` whose one-step prediction differs f
 (fed-back outputs). The same spec is refitted with ``cost: mse_inf`` (free-running estimation).
 Statistic: the paired reduction of the free-run squared error on the validation split (train if
 there is none), d_t = e1_t^2 - e2_t^2, tested one-sided by a signed-rank test on contiguous batch
-means (valid under serial correlation, :func:`dynmodel.diagnose.bootstrap.batch_means_test`). Noise signature: the one-step NMSE of the one-step fit must be at least
-``SIGNATURE`` times the free-run NMSE of the free-running fit. With noisy outputs both approach the
-noise share of the output variance; without noise one-step prediction is far easier than free run.
-Score: the relative reduction of the free-run mean square, 1 - MSE_inf / MSE_1.
+means (valid under serial correlation, :func:`dynmodel.diagnose.bootstrap.batch_means_test`). Noise
+signature: the one-step NMSE of the one-step fit must be at least ``SIGNATURE`` times the free-run
+NMSE of the free-running fit. With noisy outputs both approach the noise share of the output
+variance; without noise one-step prediction is far easier than free run. Score: the relative
+reduction of the free-run mean square, 1 - MSE_inf / MSE_1.
 """
 from __future__ import annotations
 
@@ -69,9 +70,11 @@ class NoiseBias(Detector):
             "one_step_nmse_of_mse1_fit": one_step, "free_run_nmse_of_mse_inf_fit": free_inf,
             "noise_signature": ratio, "signature_threshold": SIGNATURE, "fits": fits,
         }
-        summary = (f"free-running estimation lowers the {split} free-run NMSE from {ctx.fit.nmse(split):.4g} % to "
-                   f"{free_inf:.4g} % ({100 * share:.0f} %, t = {t:.3g}, p = {p:.2g}); the one-step error "
-                   f"({one_step:.4g} %) is {ratio:.2g} x that level, as output noise makes it")
+        verb = "lowers" if share > 0 else "does not lower"
+        summary = (f"free-running estimation {verb} the {split} free-run NMSE from {ctx.fit.nmse(split):.4g} % to "
+                   f"{free_inf:.4g} % ({100 * share:.0f} %, p = {p:.2g}); the one-step error ({one_step:.4g} %) is "
+                   + (f"{ratio:.2g} x that level, as output noise makes it" if ratio >= SIGNATURE else
+                      f"far below it ({ratio:.2g} x): no sign of output noise"))
         extensions = [Extension("estimate the weights on the free-running error (cost: mse_inf, thesis 3.2)",
                                 {"cost": "mse_inf"})]
         if ctx.family == NARX and ctx.params.get("terms") is None and ctx.params.get("selection") != "free_run":

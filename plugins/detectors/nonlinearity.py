@@ -1,11 +1,11 @@
 """static-nonlinearity: the residual depends nonlinearly on the current level of an input.
 
-The input level is mapped to x in [-1, 1] over its 1-99 % quantile range (clipped beyond);
-test features: the Legendre polynomials P2(x) .. P5(x); base features: the input at lags
-0 .. min(M, 5), M the model's memory (a wrong linear gain or wrong linear dynamics is not a static
-nonlinearity), and two slow functions of time (nor is a drift). Statistic: the out-of-sample incremental R^2 (fit on train, judged on validation) with its batch-means
-p-value (:mod:`dynmodel.diagnose.dependence`). Score: that share of the
-residual mean square.
+The input level is mapped to x in [-1, 1] over its 1-99 % quantile range (clipped beyond); test
+features: the Legendre polynomials P2(x) .. P5(x); base features: the input at lags 0 .. min(M, 5),
+M the model's memory (a wrong linear gain or wrong linear dynamics is not a static nonlinearity),
+and two slow functions of time (nor is a drift). Statistic: the out-of-sample incremental R^2 (fit
+on train, judged on validation) with its batch-means p-value (:mod:`dynmodel.diagnose.dependence`).
+Score: that share of the residual mean square.
 """
 from __future__ import annotations
 
@@ -46,7 +46,7 @@ class StaticNonlinearity(Detector):
             for k in range(len(ctx.output_names)):
                 e = np.concatenate(ctx.residuals(k))
                 dep = holdout_share(e, base, F, check)
-                if best is None or dep.share > best[0].adjusted:
+                if best is None or dep.share > best[0].share:
                     best = (dep, j, k, lo, hi, u, e)
         if best is None:
             return None
