@@ -73,6 +73,29 @@ def hidden(start: int, count: int) -> None:
             print(f"      seed {seed}: named {verdict}")
 
 
+def generator_friction(start: int, count: int) -> None:
+    """Direction dependence in data of the friction simulators (the `dahl` generator)."""
+    t0 = time.perf_counter()
+    named, gains, chosen, misses = 0, [], {}, []
+    for seed in range(start, start + count):
+        spec, _ = H.dahl_generator_spec(seed)
+        with tempfile.TemporaryDirectory() as d:
+            result = diagnose(spec, "<bench>", Path(d), Settings(seeds=2))
+        named += result.verdict == "direction-dependence"
+        if result.verdict != "direction-dependence":
+            misses.append((seed, result.verdict))
+        if result.gain and result.gain.get("relative_reduction") is not None:
+            gains.append(result.gain["relative_reduction"])
+        if result.rounds[0].chosen is not None:
+            key = result.rounds[0].chosen.extension.summary.split(":")[0]
+            chosen[key] = chosen.get(key, 0) + 1
+    print(f"  dahl generator         named first {named}/{count}; test NMSE reduction median "
+          f"{100 * np.median(gains):.1f} %, min {100 * np.min(gains):.1f} %; chosen {chosen} "
+          f"({time.perf_counter() - t0:.0f} s)")
+    for seed, verdict in misses:
+        print(f"      seed {seed}: named {verdict}")
+
+
 def clean(count: int) -> None:
     print(f"clean data, adequate models, seeds 0..{count - 1}")
     for name, make in H.CLEAN.items():
@@ -94,6 +117,7 @@ def main() -> None:
     ap.add_argument("--clean", type=int, default=50)
     args = ap.parse_args()
     hidden(args.start, args.seeds)
+    generator_friction(args.start, args.seeds)
     clean(args.clean)
 
 

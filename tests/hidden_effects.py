@@ -243,6 +243,20 @@ def clean_esn(seed: int, n: int = 4000) -> Case:
     return Case("adequate", {"u": u, "y": narx_system(u)}, model)
 
 
+def dahl_generator_spec(seed: int, n: int = 10000) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Friction from the ``dahl`` generator (issue 7's simulators): a multisine position of 10 um std with an
+    8 s period drives Dahl pre-sliding hysteresis of random Coulomb force; 1 % output noise. The baseline
+    sees the position only through its last three samples (narx without output lags). Returns (spec, truth)."""
+    rng = np.random.default_rng(seed)
+    fc = float(rng.uniform(10.0, 30.0))
+    params = {"coulomb": fc, "sigma": 1e7, "position_unit": "um",
+              "trajectory": {"kind": "multisine", "std": 1e-5, "period": 8.0, "band": [0.1, 1.0]}}
+    spec = {"name": "dahl", "data": {"generator": "dahl", "n": n, "seed": seed, "params": params, "split": dict(SPLIT),
+                                     "noise": {"std": 0.01, "splits": ["train", "validation", "test"]}},
+            "model": FIR_X | {"params": {"lags": {"position": [0, 1, 2]}, "degree": 2}}, "seed": 0}
+    return spec, {"coulomb": fc}
+
+
 HIDDEN: dict[str, Callable[[int], Case]] = {
     "sensor-drift": sensor_drift, "missing-delay": missing_delay, "noise-bias": noise_bias,
     "free-run-instability": instability, "direction-dependence": direction,

@@ -15,7 +15,7 @@ from dynmodel.diagnose.fitting import Fitter
 from dynmodel.diagnose.runner import detect
 
 from conftest import write_yaml
-from hidden_effects import CLEAN, HIDDEN, Case, missing_delay, narx_system
+from hidden_effects import CLEAN, HIDDEN, Case, dahl_generator_spec, missing_delay, narx_system
 
 SEEDS = (7, 2024)  # each case draws its strength, lag, frequency, ... from its seed
 
@@ -81,6 +81,21 @@ def test_a_hidden_cause_is_named_first_with_its_evidence_and_gain(cause, seed, t
         assert unc["relative_reduction"]["interval_95"][0] > 0.5 * MARGIN[cause]
     else:  # random fits: every seed gains
         assert min(unc["relative_reduction"]["values"]) > 0.5 * MARGIN[cause]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_direction_dependence_in_the_dahl_generator_data(seed, tmp_path):
+    """The same cause in data from the friction simulators (the `dahl` generator), not the test helper."""
+    spec, truth = dahl_generator_spec(seed)
+    result = diagnose(spec, "<test>", tmp_path, Settings())
+    assert result.verdict == "direction-dependence", [(f.cause, f.score) for f in result.findings]
+    ev = result.findings[0].evidence
+    assert ev["input"] == "position" and ev["residual_mean_moving_up"] > ev["residual_mean_moving_down"]
+    # both remedies of the issue are measured: direction features and a dynamical family; the better one is kept
+    proposed = [x.summary for x in result.findings[0].extensions]
+    assert any("direction features" in x for x in proposed) and any("dynamical family" in x for x in proposed)
+    assert result.rounds[0].chosen.extension.summary in proposed
+    assert result.gain["relative_reduction"] > 0.8
 
 
 def test_clean_data_with_an_adequate_model_names_no_cause(tmp_path):
