@@ -1,4 +1,5 @@
-"""Command line: ``dynmodel fit | validate | predict | inspect | reliability-check | plugins | schema | generate``.
+"""Command line: ``dynmodel fit | validate | predict | inspect | reliability-check | diagnose | plugins | schema |
+generate``.
 
 Tables go to stdout, progress to stderr, machine output to ``--json FILE``. A user's mistake
 gets one line on stderr and exit code 2 (1 when a check ran and failed, e.g. a diverging
@@ -414,6 +415,97 @@ def reliability_check(
         raise typer.Exit(report.exit_code)
 
 
+# ------------------------------------------------------------------------------ diagnose
+@app.command("diagnose")
+@handled
+def diagnose_cmd(
+        spec: Path = typer.Argument(..., help="YAML spec of the model to diagnose"),
+        report: Optional[Path] = typer.Option(None, "--report", help="report folder (default: <name>-diagnosis next to "
+                                                                     "the spec): index.md, figures, extended.yaml"),
+        json_path: Optional[Path] = typer.Option(None, "--json", help="write the summary as JSON"),
+        rounds: int = typer.Option(1, "--rounds", min=1, help="diagnose and extend again until adequate or no gain"),
+        seeds: int = typer.Option(3, "--seeds", min=1, help="fits per spec for random families (gain uncertainty)"),
+        alpha: float = typer.Option(0.001, "--alpha", min=1e-12, max=0.5, help="significance level of each detector"),
+        min_share: float = typer.Option(0.05, "--min-share", min=0.0, max=1.0,
+                                        help="a cause must account for this share of the residual mean square"),
+        min_effect: float = typer.Option(0.001, "--min-effect", min=0.0,
+                                         help="... and for this fraction of the output variance"),
+        max_lag: Optional[int] = typer.Option(None, "--max-lag", min=1, help="largest lag searched for delays (samples)"),
+        candidates: int = typer.Option(4, "--candidates", min=1, help="extensions measured per round"),
+        seed: int = typer.Option(0, "--seed", help="seed of the gain's block bootstrap"),
+        quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output")) -> None:
+    """Show what the model's free run gets wrong, name the cause, extend the model and measure the gain
+    on the held-out test split (exit 0 when the diagnosis ran, adequate or not)."""
+    from .diagnose import Settings, diagnose
+    from .diagnose.report import write_extended, write_json, write_report
+    from .progress import Reporter
+    from .spec import load_spec, parse_yaml
+
+    _warnings_to_stderr()
+    s = load_spec(spec)  # one-line errors for a bad spec before any work
+    raw = parse_yaml(spec.read_text(encoding="utf-8"), str(spec))
+    raw.setdefault("name", spec.stem)
+    settings = Settings(alpha=alpha, min_share=min_share, min_effect=min_effect, max_lag=max_lag, rounds=rounds,
+                        seeds=seeds, candidates=candidates, seed=seed)
+    with Reporter(enabled=not quiet) as progress:
+        result = diagnose(raw, str(spec), spec.resolve().parent, settings, progress)
+        folder = report if report is not None else spec.resolve().parent / f"{s.name}-diagnosis"
+        progress("report", None, str(folder))
+        index = write_report(result, folder)
+        extended = write_extended(result, folder)
+    _print_diagnosis(result)
+    out.print(f"report written to {index}")
+    if extended is not None:
+        out.print(f"extended spec written to {extended} (run it with: dynmodel fit {extended})")
+    if json_path:
+        write_json(result, json_path)
+        out.print(f"summary written to {json_path}")
+
+
+def _print_diagnosis(result) -> None:
+    base = result.baseline
+    out.print(f"[bold]{result.name}[/]: {base.spec.model.family} (cost {base.spec.cost}) diagnosed in "
+              f"{result.seconds:.1f} s; model memory {result.rounds[0].memory} samples")
+    out.print(metrics_table(base.metrics, "baseline free run"))
+    table = Table(title="checks (significant first, by score: share of the residual's mean square)",
+                  title_justify="left")
+    for col, kw in (("cause", {}), ("significant", {}), ("score", {"justify": "right"}), ("p", {"justify": "right"})):
+        table.add_column(col, **kw)
+    for f in result.checks:
+        p = f.evidence.get("p_value")
+        table.add_row(f.cause, "yes" if f.significant else "", f"{f.score:.3g}",
+                      "-" if p is None else ("<1e-16" if p < 1e-16 else f"{p:.2g}"))
+    out.print(table)
+    if not result.findings:
+        out.print("[green]adequate[/]: no cause is significant; nothing to extend")
+        return
+    for i, f in enumerate(result.findings, 1):
+        out.print(f"{i}. [bold]{f.cause}[/]: {escape(f.summary)}")
+    top = result.findings[0]
+    out.print(f"named cause: [bold]{top.cause}[/]")
+    for rnd in result.rounds:
+        if rnd.chosen is not None:
+            out.print(f"round {rnd.index}: {escape(rnd.chosen.extension.summary)}; {rnd.outcome}")
+        elif rnd.outcome:
+            out.print(f"round {rnd.index}: {rnd.outcome}")
+    g = result.gain
+    if g:
+        before = g.get("test_nmse_before")
+        after = g.get("test_nmse_after")
+        red = g.get("relative_reduction")
+        unc = (g.get("uncertainty") or {})
+        unc = unc["per_output"][0] if "per_output" in unc else unc
+        rr = unc.get("relative_reduction") or {}
+        spread = f" ± {100 * rr['std']:.1f} %" if rr.get("std") is not None else ""
+        def shown(v, diverged):
+            return "diverged" if diverged else f"{_fmt(v)} %"
+
+        out.print(f"test NMSE {shown(before, g.get('baseline_diverged_on_test'))} -> "
+                  f"{shown(after, g.get('extended_diverged_on_test'))}"
+                  + (f" (reduction {100 * red:.1f} %{spread})" if red is not None else "")
+                  + f"; test MAX {_fmt(g.get('test_max_before'))} -> {_fmt(g.get('test_max_after'))}")
+
+
 # ------------------------------------------------------------------------------ plugins / schema
 @app.command()
 @handled
@@ -425,7 +517,8 @@ def plugins() -> None:
 
     for group, loaded, title in [(registry.FAMILIES, registry.families(), "model families"),
                                  (registry.SOURCES, registry.sources(), "data generators"),
-                                 (registry.SYSTEMS, registry.systems(), "test systems for reliability-check --system")]:
+                                 (registry.SYSTEMS, registry.systems(), "test systems for reliability-check --system"),
+                                 (registry.DETECTORS, registry.detectors(), "detectors of dynmodel diagnose")]:
         eps = {ep.name: ep.value for ep in entry_points(group=group)}
         table = Table(title=f"{title} ({group})", title_justify="left")
         table.add_column("name")

@@ -39,10 +39,20 @@ def _provenance(spec, ds: Dataset) -> dict[str, Any]:
     }
 
 
+def preprocessor(spec, ds: Dataset) -> Preprocessor:
+    """The spec's preprocessing (delay lines, derived inputs, detrending, scaling) fitted on ``ds``."""
+    d = spec.data
+    derived = [item.model_dump(mode="json", exclude_none=True) for item in d.derived_inputs]
+    detrend = [fn if isinstance(fn, str) else fn.model_dump(mode="json") for fn in d.detrend]
+    try:
+        return Preprocessor.fit(ds, list(d.delay_lines), d.scaling, derived, detrend)
+    except ValueError as exc:
+        raise DynmodelError(str(exc), f"{spec.source}: data", "correct data.derived_inputs") from None
+
+
 def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
     """Fit the spec's model on an already loaded dataset and evaluate it on every split."""
-    data_spec = spec.data
-    pre = Preprocessor.fit(ds, list(data_spec.delay_lines), data_spec.scaling)
+    pre = preprocessor(spec, ds)
     td = training_data(ds, pre)
     family_cls = registry.family(spec.model.family)
     params = spec.model.params.model_dump(mode="python")

@@ -52,6 +52,9 @@ class Family(ABC):
     Params: ClassVar[type[FamilyParams]] = FamilyParams
     #: what to try when a free run diverges (the fix of the one-line error)
     stability_hint: ClassVar[str] = "use cost: mse_inf"
+    #: does ``fit`` draw random numbers (network weights, annealing moves)? Then a result depends on the
+    #: seed, and ``dynmodel diagnose`` repeats fits over seeds to measure a gain's uncertainty
+    stochastic: ClassVar[bool] = True
 
     def __init__(self, **params: Any):
         self.params = self.Params(**params)

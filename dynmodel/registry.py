@@ -20,8 +20,9 @@ from .errors import DynmodelError
 FAMILIES = "dynmodel.families"
 SOURCES = "dynmodel.sources"
 SYSTEMS = "dynmodel.systems"
+DETECTORS = "dynmodel.detectors"
 
-_KIND = {FAMILIES: "model family", SOURCES: "data generator", SYSTEMS: "test system"}
+_KIND = {FAMILIES: "model family", SOURCES: "data generator", SYSTEMS: "test system", DETECTORS: "diagnosis detector"}
 
 
 @lru_cache(maxsize=None)
@@ -55,6 +56,11 @@ def sources() -> dict[str, Any]:
 def systems() -> dict[str, Any]:
     """Installed built-in test systems for the reliability check, by id."""
     return dict(_load_group(SYSTEMS))
+
+
+def detectors() -> dict[str, Any]:
+    """Installed diagnosis detectors (``dynmodel diagnose``), by id."""
+    return dict(_load_group(DETECTORS))
 
 
 def unknown_name_message(kind: str, name: str, known: list[str]) -> tuple[str, str]:

@@ -90,6 +90,12 @@ class FileSourceFields(StrictModel):
     delimiter: Optional[str] = Field(None, description="text files: field separator (detected when omitted)")
     segments: Optional[list[tuple[int, int]]] = Field(None, description="several recordings inside one file, as [start, stop) sample ranges")
     sampling_time: Optional[float] = Field(None, gt=0, description="seconds per sample (default 1)")
+    time_column: Optional[Union[str, int]] = Field(
+        None, description="column of time stamps; without resample the stamps must be uniform and give the sampling time")
+    time_unit: float = Field(1.0, gt=0, description="seconds per unit of the time column (0.001 for milliseconds)")
+    resample: Optional[float] = Field(
+        None, gt=0, description="interpolate every recording linearly onto a uniform grid with this step in seconds "
+        "(for non-uniformly sampled files; needs time_column; sets the sampling time)")
 
 
 class SeparateSource(StrictModel):
@@ -103,10 +109,63 @@ class SeparateSource(StrictModel):
     delimiter: Optional[str] = None
     segments: Optional[list[tuple[int, int]]] = None
     sampling_time: Optional[float] = Field(None, gt=0)
+    time_column: Optional[Union[str, int]] = None
+    time_unit: Optional[float] = Field(None, gt=0)
+    resample: Optional[float] = Field(None, gt=0)
     generator: Optional[str] = None
     params: Optional[dict[str, Any]] = None
     n: Optional[int] = Field(None, gt=0)
     seed: Optional[int] = Field(None, ge=0)
+
+
+class SaturatingTime(StrictModel):
+    """1 - exp(-t / tau): a drift that levels off (thesis 6.2.2, charge leakage of a piezo sensor)."""
+
+    saturating: float = Field(gt=0, description="time constant tau in seconds")
+
+
+#: a function of the time t (seconds) since a recording's first sample: ``linear`` (t) or {saturating: tau}
+TimeFunction = Union[Literal["linear"], SaturatingTime]
+
+
+class TimeChannel(StrictModel):
+    """An input channel that is a function of the time since the recording's start (a drift term)."""
+
+    time: TimeFunction = Field(description="linear (t in seconds) or {saturating: tau} (1 - exp(-t / tau))")
+    name: Optional[str] = Field(None, description="channel name (default time_linear / time_saturating_<tau>)")
+
+
+class DirectionChannel(StrictModel):
+    """+1 while an input moves up, -1 while it moves down (held through standstill)."""
+
+    direction: str = Field(description="the input column whose direction of motion is wanted")
+    deadband: float = Field(0.0, ge=0, description="a reversal counts once the input has moved back by more than this "
+                                                   "(input units; ignores noise at the turning points)")
+    name: Optional[str] = Field(None, description="channel name (default <input>_direction)")
+
+
+class ReversalChannel(StrictModel):
+    """The change of an input since its last reversal (the displacement that shapes hysteresis loops)."""
+
+    since_reversal: str = Field(description="the input column")
+    deadband: float = Field(0.0, ge=0, description="as for direction")
+    name: Optional[str] = Field(None, description="channel name (default <input>_since_reversal)")
+
+
+def _derived_tag(value: Any) -> str | None:
+    keys = set(value) if isinstance(value, dict) else {k for k in ("time", "direction", "since_reversal")
+                                                       if getattr(value, k, None) is not None}
+    for key in ("time", "direction", "since_reversal"):
+        if key in keys:
+            return key
+    return None
+
+
+DerivedInput = Annotated[Union[Annotated[TimeChannel, Tag("time")], Annotated[DirectionChannel, Tag("direction")],
+                               Annotated[ReversalChannel, Tag("since_reversal")]],
+                         Discriminator(_derived_tag, custom_error_type="derived_input",
+                                       custom_error_message="write {time: linear}, {time: {saturating: TAU}}, "
+                                       "{direction: INPUT} or {since_reversal: INPUT}")]
 
 
 class DataCommon(StrictModel):
@@ -118,6 +177,13 @@ class DataCommon(StrictModel):
         "segment", description="segment: the transient is cut at the start of every split segment; recording: only "
         "where a recording starts (and the state restarts), so a segment continuing a run keeps all its samples")
     delay_lines: list[Annotated[int, Field(gt=0)]] = Field(default_factory=list, description="extra copies of every input delayed by these numbers of samples (external memory, thesis 6.3.2)")
+    derived_inputs: list[DerivedInput] = Field(
+        default_factory=list, description="extra model inputs computed from each recording: functions of the time "
+        "since its start ({time: linear}, {time: {saturating: TAU}}: drift terms), the direction of motion of an input "
+        "({direction: u}) and its change since the last reversal ({since_reversal: u}); appended after the delay lines")
+    detrend: list[TimeFunction] = Field(
+        default_factory=list, description="remove a trend from the output before fitting: least squares of the training "
+        "outputs on these functions of time (e.g. [linear, {saturating: 30}]); predictions get the trend back")
     noise: Optional[NoiseSpec] = None
     scaling: Literal["standard", "none"] = Field("standard", description="standard: zero mean, unit std per channel from the training split")
 

@@ -16,6 +16,7 @@ import numpy as np
 from .. import registry
 from ..errors import DataError, SpecError
 from ..spec import SPLITS
+from . import resample
 from .readers import read_columns
 
 Range = tuple[int, int, int]  # (recording index, start, stop)
@@ -102,18 +103,26 @@ def _check_finite(arr: np.ndarray, names: list[str], where: str) -> None:
                         "remove, interpolate or fill those samples before fitting")
 
 
-def _file_recordings(src: dict[str, Any], resolve) -> list[Recording]:
+def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], float | None]:
+    """The recordings of a file source, and the sampling time its time column gives (None without one)."""
     paths = src["path"] if isinstance(src["path"], list) else [src["path"]]
     selectors = list(src["input"]) + list(src["output"])
     n_in = len(src["input"])
+    time_col = src.get("time_column")
     recs: list[Recording] = []
+    steps: list[tuple[float, str]] = []
     for p in paths:
         path = resolve(p)
-        cols = read_columns(path, selectors, header=src.get("header", True),
+        wanted = selectors + ([time_col] if time_col is not None else [])
+        cols = read_columns(path, wanted, header=src.get("header", True),
                             columns=src.get("columns"), delimiter=src.get("delimiter"))
         data = np.column_stack([cols[str(s).strip()] for s in selectors]).astype(np.float64)
         names = [str(s) for s in selectors]
         _check_finite(data, names, str(path))
+        if time_col is not None:
+            t = cols[str(time_col).strip()] * float(src.get("time_unit") or 1.0)
+            data, step = resample.uniform(t, data, src.get("resample"), str(path))
+            steps.append((step, str(path)))
         segments = src.get("segments") or [(0, data.shape[0])]
         for k, (a, b) in enumerate(segments):
             if not 0 <= a < b <= data.shape[0]:
@@ -121,7 +130,14 @@ def _file_recordings(src: dict[str, Any], resolve) -> list[Recording]:
                                 str(path), "correct data.segments")
             name = path.name if len(segments) == 1 else f"{path.name}[{a}:{b}]"
             recs.append(Recording(name, data[a:b, :n_in].copy(), data[a:b, n_in:].copy()))
-    return recs
+    if not steps:
+        return recs, None
+    first, where = steps[0]
+    for step, other in steps[1:]:
+        if abs(step - first) > resample.SAME_STEP * first:
+            raise DataError(f"sampled every {step:.6g} s while {Path(where).name} is sampled every {first:.6g} s",
+                            other, f"add 'resample: {first:.6g}' to put every recording on one grid")
+    return recs, first
 
 
 def _generator_recording(src: dict[str, Any], where: str) -> tuple[Recording, float, list[str], list[str]]:
@@ -155,6 +171,7 @@ def _generator_recording(src: dict[str, Any], where: str) -> tuple[Recording, fl
 
 
 SOURCE_KEYS = ("path", "input", "output", "header", "columns", "delimiter", "segments", "sampling_time",
+               "time_column", "time_unit", "resample",
                "generator", "params", "n", "seed")
 
 
@@ -188,8 +205,16 @@ def _load_source(src: dict[str, Any], resolve, where: str):
     if "input" not in src or "output" not in src:
         raise SpecError("a file source needs 'input' and 'output' column lists", where,
                         "add input: [...] and output: [...]")
-    recs = _file_recordings(src, resolve)
-    return recs, float(src.get("sampling_time") or 1.0), [str(s) for s in src["input"]], [str(s) for s in src["output"]]
+    if src.get("resample") is not None and src.get("time_column") is None:
+        raise SpecError("resample needs the time stamps", f"{where}.resample", "add time_column: NAME (and time_unit)")
+    recs, step = _file_recordings(src, resolve)
+    st = src.get("sampling_time")
+    if step is not None:
+        if st is not None and abs(float(st) - step) > resample.UNIFORM_TOLERANCE * step:
+            raise SpecError(f"sampling_time {st:g} disagrees with the time column's step of {step:.6g} s",
+                            f"{where}.sampling_time", "remove sampling_time (the time column gives it)")
+        st = step
+    return recs, float(st or 1.0), [str(s) for s in src["input"]], [str(s) for s in src["output"]]
 
 
 def _split_bounds(split: dict[str, Any], n: int) -> dict[str, tuple[int, int]]:
@@ -247,7 +272,7 @@ def load_dataset(spec) -> Dataset:
             raise DataError(f"the separate {s} recording has {len(ins)} inputs / {len(outs)} outputs, "
                             f"the main data {len(in_names)} / {len(out_names)}", f"{spec.source}: data.{s}",
                             "select the same input and output columns")
-        if abs(st_s - st) > 1e-12 * max(st, 1.0):
+        if abs(st_s - st) > resample.SAME_STEP * st:
             raise DataError(f"the separate {s} recording is sampled every {st_s}, the main data every {st}",
                             f"{spec.source}: data.{s}.sampling_time", "resample to a common sampling time")
         for rec in recs:

@@ -1,8 +1,15 @@
-"""Map physical signals to the model's space and back: delay lines and scaling.
+"""Map physical signals to the model's space and back: delay lines, derived inputs, detrending, scaling.
 
 Delay lines (thesis 6.3.2) append, for every input channel, copies delayed by the given numbers
-of samples; before a recording's first sample the delayed copy holds that first value.
-Scaling is affine per channel, with statistics from the training split only.
+of samples; before a recording's first sample the delayed copy holds that first value. Derived
+inputs (:mod:`.derived`: time functions, direction of motion, change since the last reversal)
+follow them. Detrending subtracts T(t) = sum_j c_j f_j(t) from the outputs, the c_j fitted by
+least squares on the training outputs together with one constant per recording and a linear term
+in every input and derived input (so that the input's own slow variation does not leak into the
+trend); predictions get T(t) back, so scores stay in the measured units. Every array handed to :meth:`Preprocessor.inputs`,
+:meth:`~Preprocessor.outputs` and :meth:`~Preprocessor.physical_outputs` starts at a
+recording's first sample (t = 0), as free runs do. Scaling is affine per channel, with
+statistics from the training split only.
 """
 from __future__ import annotations
 
@@ -11,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from . import derived as derived_mod
 from .dataset import Dataset
 
 
@@ -40,19 +48,40 @@ class Preprocessor:
     input_scale: np.ndarray = field(default_factory=lambda: np.ones(0))
     output_offset: np.ndarray = field(default_factory=lambda: np.zeros(0))
     output_scale: np.ndarray = field(default_factory=lambda: np.ones(0))
+    #: derived input channels (JSON forms of the spec's items) and their scaling
+    derived: list[dict[str, Any]] = field(default_factory=list)
+    derived_offset: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    derived_scale: np.ndarray = field(default_factory=lambda: np.ones(0))
+    #: output trend: time functions and their coefficients (len(detrend), n_outputs)
+    detrend: list[Any] = field(default_factory=list)
+    trend_coef: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
     @classmethod
-    def fit(cls, ds: Dataset, delay_lines: list[int], scaling: str) -> "Preprocessor":
-        """Per-channel mean and std of the training ranges (``scaling: standard``)."""
+    def fit(cls, ds: Dataset, delay_lines: list[int], scaling: str, derived: list[dict[str, Any]] | None = None,
+            detrend: list[Any] | None = None) -> "Preprocessor":
+        """Trend coefficients, then per-channel mean and std of the training ranges (``scaling: standard``).
+
+        Raises ValueError when a derived input names an unknown input column."""
         n_in, n_out = len(ds.input_names), len(ds.output_names)
+        items = [{k: v for k, v in dict(item).items() if v is not None} for item in (derived or [])]
+        derived_mod.check(items, ds.input_names)
         pre = cls(list(ds.input_names), list(ds.output_names), ds.sampling_time, list(delay_lines), scaling,
-                  np.zeros(n_in), np.ones(n_in), np.zeros(n_out), np.ones(n_out))
+                  np.zeros(n_in), np.ones(n_in), np.zeros(n_out), np.ones(n_out), items,
+                  np.zeros(len(items)), np.ones(len(items)), list(detrend or []), np.zeros((len(detrend or []), n_out)))
+        train = ds.scored("train")
+        if pre.detrend:
+            pre.trend_coef = _fit_trend(ds, train, pre.detrend, items)
         if scaling == "standard":
-            us = [ds.recordings[r].u[a:b] for r, a, b in ds.scored("train")]
-            ys = [ds.recordings[r].y[a:b] for r, a, b in ds.scored("train")]
+            us = [ds.recordings[r].u[a:b] for r, a, b in train]
+            ys = [pre._detrended(ds.recordings[r].y[:b])[a:b] for r, a, b in train]
             u, y = np.concatenate(us), np.concatenate(ys)
             pre.input_offset, pre.input_scale = u.mean(axis=0), _safe_std(u)
             pre.output_offset, pre.output_scale = y.mean(axis=0), _safe_std(y)
+            if items:
+                ds_ = [derived_mod.compute(items, ds.recordings[r].u[:b], ds.input_names, ds.sampling_time)[a:b]
+                       for r, a, b in train]
+                d = np.concatenate(ds_)
+                pre.derived_offset, pre.derived_scale = d.mean(axis=0), _safe_std(d)
         return pre
 
     @property
@@ -60,37 +89,88 @@ class Preprocessor:
         names = list(self.input_names)
         for d in self.delay_lines:
             names += [f"{n}@{d}" for n in self.input_names]
-        return names
+        return names + [derived_mod.channel_name(item) for item in self.derived]
 
     @property
     def n_model_inputs(self) -> int:
-        return len(self.input_names) * (1 + len(self.delay_lines))
+        return len(self.input_names) * (1 + len(self.delay_lines)) + len(self.derived)
 
     def inputs(self, u: np.ndarray) -> np.ndarray:
-        """Physical inputs (n, n_inputs) -> model inputs (n, n_inputs * (1 + len(delay_lines)))."""
+        """Physical inputs (n, n_inputs) from a recording's start -> model inputs
+        (n, n_inputs * (1 + len(delay_lines)) + len(derived))."""
         u = _columns(u, len(self.input_names), "input")
-        return delayed_copies((u - self.input_offset) / self.input_scale, self.delay_lines)
+        um = delayed_copies((u - self.input_offset) / self.input_scale, self.delay_lines)
+        if not self.derived:
+            return um
+        extra = derived_mod.compute(self.derived, u, self.input_names, self.sampling_time)
+        return np.hstack([um, (extra - self.derived_offset) / self.derived_scale])
+
+    def trend(self, n: int) -> np.ndarray:
+        """The output trend T(t) (n, n_outputs) over the first n samples of a recording (zero at t = 0)."""
+        if not self.detrend:
+            return np.zeros((n, len(self.output_names)))
+        return derived_mod.time_matrix(self.detrend, n, self.sampling_time) @ self.trend_coef
+
+    def _detrended(self, y: np.ndarray) -> np.ndarray:
+        return y - self.trend(len(y)) if self.detrend else y
 
     def outputs(self, y: np.ndarray) -> np.ndarray:
         y = _columns(y, len(self.output_names), "output")
-        return (y - self.output_offset) / self.output_scale
+        return (self._detrended(y) - self.output_offset) / self.output_scale
 
     def physical_outputs(self, y_model: np.ndarray) -> np.ndarray:
-        return y_model * self.output_scale + self.output_offset
+        y = y_model * self.output_scale + self.output_offset
+        return y + self.trend(len(y)) if self.detrend else y
 
     def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         arrays = {"input_offset": self.input_offset, "input_scale": self.input_scale,
                   "output_offset": self.output_offset, "output_scale": self.output_scale}
-        attrs = {"input_names": self.input_names, "output_names": self.output_names,
-                 "sampling_time": self.sampling_time, "delay_lines": self.delay_lines, "scaling": self.scaling}
+        attrs: dict[str, Any] = {"input_names": self.input_names, "output_names": self.output_names,
+                                 "sampling_time": self.sampling_time, "delay_lines": self.delay_lines,
+                                 "scaling": self.scaling}
+        if self.derived:
+            arrays.update(derived_offset=self.derived_offset, derived_scale=self.derived_scale)
+            attrs["derived_inputs"] = self.derived
+        if self.detrend:
+            arrays["trend_coef"] = self.trend_coef
+            attrs["detrend"] = self.detrend
         return arrays, attrs
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> "Preprocessor":
-        return cls(list(attrs["input_names"]), list(attrs["output_names"]), float(attrs["sampling_time"]),
-                   [int(d) for d in attrs["delay_lines"]], str(attrs["scaling"]),
-                   *(np.asarray(arrays[k], dtype=np.float64) for k in
-                     ("input_offset", "input_scale", "output_offset", "output_scale")))
+        pre = cls(list(attrs["input_names"]), list(attrs["output_names"]), float(attrs["sampling_time"]),
+                  [int(d) for d in attrs["delay_lines"]], str(attrs["scaling"]),
+                  *(np.asarray(arrays[k], dtype=np.float64) for k in
+                    ("input_offset", "input_scale", "output_offset", "output_scale")))
+        if attrs.get("derived_inputs"):
+            pre.derived = list(attrs["derived_inputs"])
+            pre.derived_offset = np.asarray(arrays["derived_offset"], dtype=np.float64)
+            pre.derived_scale = np.asarray(arrays["derived_scale"], dtype=np.float64)
+        if attrs.get("detrend"):
+            pre.detrend = list(attrs["detrend"])
+            pre.trend_coef = np.asarray(arrays["trend_coef"], dtype=np.float64).reshape(len(pre.detrend), -1)
+        return pre
+
+
+def _fit_trend(ds: Dataset, ranges: list[tuple[int, int, int]], functions: list[Any],
+               derived: list[dict[str, Any]]) -> np.ndarray:
+    """Coefficients (len(functions), n_outputs) of y = c_rec + sum_j c_j f_j(t) + b' v_t by least squares on
+    the training ranges: one constant c_rec per recording (a recording restarts the clock), v_t the
+    inputs and derived inputs (nuisance terms, not kept)."""
+    recs = sorted({r for r, _, _ in ranges})
+    rows, targets = [], []
+    for r, a, b in ranges:
+        rec = ds.recordings[r]
+        F = derived_mod.time_matrix(functions, b, ds.sampling_time)[a:b]
+        dummies = np.zeros((b - a, len(recs)))
+        dummies[:, recs.index(r)] = 1.0
+        extra = derived_mod.compute(derived, rec.u[:b], ds.input_names, ds.sampling_time)[a:b]
+        rows.append(np.hstack([F, dummies, rec.u[a:b], extra]))
+        targets.append(ds.recordings[r].y[a:b])
+    X, Y = np.concatenate(rows), np.concatenate(targets)
+    scale = np.maximum(np.abs(X).max(axis=0), 1e-300)
+    coef, *_ = np.linalg.lstsq(X / scale, Y, rcond=None)
+    return (coef / scale[:, None])[:len(functions)]
 
 
 def _columns(a: np.ndarray, k: int, what: str) -> np.ndarray:

@@ -30,6 +30,7 @@ class Narx(Family):
     name = "narx"
     description = "polynomial NARX model: FOS structure selection, free-running estimation (thesis 3.1, 3.2, A.2.2, 6.3.2)"
     Params = NarxFamilyParams
+    stochastic = False  # FOS, least squares and the free-run refinement are deterministic
     stability_hint = ("use cost: mse_inf (free-running estimation), bounds: 0.1 (clip the output, eq. 6.25), ridge: auto, "
                       "or a lower degree")
 

@@ -1,0 +1,125 @@
+"""Derived input channels, computed from a recording and appended to the model inputs.
+
+* time functions of t = k * sampling_time, the time since the recording's first sample:
+  ``linear`` gives t, ``{saturating: tau}`` gives 1 - exp(-t / tau). Both are 0 at t = 0, so they
+  model a drift that starts with the recording (thesis 6.2.2: a sensor zeroed at the start).
+* ``direction``: d_t = +1 while the input moves up, -1 while it moves down. A reversal is declared
+  once the input has moved back from its running extreme by more than ``deadband``, and d_t holds
+  its value through standstill.
+* ``since_reversal``: s_t = u_t - u_r, the input's change since the extreme u_r at which the last
+  reversal started (hysteresis loops of friction are shaped by it).
+
+Items are the JSON forms of the spec's ``derived_inputs`` (``{"time": "linear"}``,
+``{"time": {"saturating": 30.0}}``, ``{"direction": "x", "deadband": 0.1}``, ...).
+"""
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numba
+import numpy as np
+
+
+def time_function_name(fn: Any) -> str:
+    """'linear' or 'saturating_<tau>' for a time function given as in the spec."""
+    if fn == "linear":
+        return "linear"
+    return f"saturating_{float(fn['saturating']):g}"
+
+
+def time_function(fn: Any, t: np.ndarray) -> np.ndarray:
+    """Value of a time function (``"linear"`` or ``{"saturating": tau}``) at times ``t`` (seconds)."""
+    if fn == "linear":
+        return np.asarray(t, dtype=np.float64)
+    return -np.expm1(-np.asarray(t, dtype=np.float64) / float(fn["saturating"]))
+
+
+def time_matrix(functions: Sequence[Any], n: int, sampling_time: float) -> np.ndarray:
+    """(n, len(functions)) values of the time functions at t = k * sampling_time."""
+    t = np.arange(n, dtype=np.float64) * sampling_time
+    if not functions:
+        return np.zeros((n, 0))
+    return np.column_stack([time_function(fn, t) for fn in functions])
+
+
+@numba.njit(cache=True)
+def _reversals(u: np.ndarray, deadband: float) -> tuple[np.ndarray, np.ndarray]:
+    n = u.shape[0]
+    d = np.empty(n)
+    s = np.empty(n)
+    if n == 0:
+        return d, s
+    direction = 1.0
+    extreme = u[0]
+    turn = u[0]
+    started = False
+    for t in range(n):
+        x = u[t]
+        if not started:
+            # the first movement beyond the deadband sets the initial direction
+            if x - u[0] > deadband:
+                direction, started, extreme = 1.0, True, x
+            elif u[0] - x > deadband:
+                direction, started, extreme = -1.0, True, x
+        elif direction > 0:
+            if x >= extreme:
+                extreme = x
+            elif extreme - x > deadband:
+                direction, turn, extreme = -1.0, extreme, x
+        else:
+            if x <= extreme:
+                extreme = x
+            elif x - extreme > deadband:
+                direction, turn, extreme = 1.0, extreme, x
+        d[t] = direction
+        s[t] = x - turn
+    return d, s
+
+
+def reversals(u: np.ndarray, deadband: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Direction d_t (+1 / -1) and change since the last reversal s_t = u_t - u_r of a 1-D signal."""
+    return _reversals(np.ascontiguousarray(u, dtype=np.float64), float(deadband))
+
+
+def kind(item: dict[str, Any]) -> str:
+    for key in ("time", "direction", "since_reversal"):
+        if key in item and item[key] is not None:
+            return key
+    raise ValueError(f"unknown derived input {item!r}")
+
+
+def channel_name(item: dict[str, Any]) -> str:
+    if item.get("name"):
+        return str(item["name"])
+    k = kind(item)
+    if k == "time":
+        return f"time_{time_function_name(item['time'])}"
+    return f"{item[k]}_{k}"
+
+
+def check(items: Sequence[dict[str, Any]], input_names: Sequence[str]) -> None:
+    """ValueError naming the first item that refers to an unknown input or repeats a name."""
+    seen = set(input_names)
+    for i, item in enumerate(items):
+        k = kind(item)
+        if k != "time" and item[k] not in input_names:
+            raise ValueError(f"derived_inputs[{i}]: '{item[k]}' is not an input column; the inputs are {list(input_names)}")
+        name = channel_name(item)
+        if name in seen:
+            raise ValueError(f"derived_inputs[{i}]: the channel name '{name}' is already taken; give another 'name'")
+        seen.add(name)
+
+
+def compute(items: Sequence[dict[str, Any]], u: np.ndarray, input_names: Sequence[str],
+            sampling_time: float) -> np.ndarray:
+    """(n, len(items)) derived channels of one recording's physical inputs ``u`` (n, n_inputs)."""
+    n = u.shape[0]
+    out = np.empty((n, len(items)))
+    for j, item in enumerate(items):
+        k = kind(item)
+        if k == "time":
+            out[:, j] = time_matrix([item["time"]], n, sampling_time)[:, 0]
+        else:
+            d, s = reversals(u[:, list(input_names).index(item[k])], float(item.get("deadband") or 0.0))
+            out[:, j] = d if k == "direction" else s
+    return out

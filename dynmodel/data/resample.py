@@ -1,0 +1,66 @@
+"""Time stamps: check a recording's sampling, or interpolate it onto a uniform grid.
+
+Rigs that log on an event loop (e.g. the pneumatic seal friction data) give non-uniform time
+stamps; discrete-time models need a uniform grid. With ``resample: h`` every selected column is
+interpolated linearly at t_0 + k h, k = 0 .. floor((t_end - t_0) / h).
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..errors import DataError
+
+#: stamps count as uniform when every step is within this fraction of the median step
+UNIFORM_TOLERANCE = 0.01
+#: recordings count as sampled alike when their steps agree to this fraction
+SAME_STEP = 1e-4
+#: gaps longer than this many grid steps are reported when bridged by interpolation
+GAP_WARNING = 5
+
+
+def check_stamps(t: np.ndarray, where: str) -> np.ndarray:
+    """The steps of finite, strictly increasing time stamps (DataError otherwise)."""
+    t = np.asarray(t, dtype=np.float64)
+    if t.size < 2:
+        raise DataError("the time column needs at least two samples", where, "check data.time_column")
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise DataError(f"the time column is not finite at sample {int(bad[0])}", where, "fix or remove that row")
+    dt = np.diff(t)
+    back = np.flatnonzero(dt <= 0)
+    if back.size:
+        k = int(back[0])
+        raise DataError(f"the time stamps do not increase at sample {k + 1} ({t[k]:g} then {t[k + 1]:g})", where,
+                        "sort the rows by time and remove repeated stamps")
+    return dt
+
+
+def uniform(t: np.ndarray, data: np.ndarray, step: float | None, where: str) -> tuple[np.ndarray, float]:
+    """(data on a uniform grid, its step in seconds) from time stamps ``t`` in seconds.
+
+    ``step=None``: the stamps must already be uniform (every step within 1 % of the median); the data
+    is returned as is and the step is the mean one, (t_end - t_0) / (n - 1), which rounding of the
+    stamps disturbs least. Otherwise every column is interpolated linearly onto the grid."""
+    dt = check_stamps(t, where)
+    if step is None:
+        med = float(np.median(dt))
+        worst = float(np.max(np.abs(dt - med)))
+        if worst > UNIFORM_TOLERANCE * med:
+            raise DataError(f"the time stamps are not uniform (steps from {dt.min():.6g} to {dt.max():.6g} s, "
+                            f"median {med:.6g} s)", where, f"add 'resample: {med:.6g}' to interpolate onto a uniform grid")
+        return data, float((t[-1] - t[0]) / (len(t) - 1))
+    t0 = float(t[0])
+    k = int(np.floor((float(t[-1]) - t0) / step + 1e-9)) + 1
+    if k < 2:
+        raise DataError(f"the recording spans {t[-1] - t0:g} s, less than two resampling steps of {step:g} s", where,
+                        "use a smaller resample step")
+    grid = t0 + step * np.arange(k)
+    out = np.column_stack([np.interp(grid, t, data[:, j]) for j in range(data.shape[1])])
+    gaps = np.flatnonzero(dt > GAP_WARNING * step)
+    if gaps.size:
+        g = int(gaps[np.argmax(dt[gaps])])
+        warnings.warn(f"{where}: {gaps.size} gap(s) longer than {GAP_WARNING} resampling steps were bridged by linear "
+                      f"interpolation (largest {dt[g]:.6g} s after t = {t[g] - t0:.6g} s)", stacklevel=2)
+    return out, float(step)

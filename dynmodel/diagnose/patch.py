@@ -1,0 +1,50 @@
+"""Extensions are JSON merge patches (RFC 7396) of the spec.
+
+merge(target, patch): a mapping in the patch merges into the target's mapping key by key, ``null``
+deletes a key, anything else (numbers, strings, lists) replaces the target's value. A patched
+spec is validated again, so an extension is always a spec a user could have written.
+"""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+from ..spec import validate_spec
+
+
+def merge(target: Any, patch: Any) -> Any:
+    """RFC 7396 merge of ``patch`` into a copy of ``target``."""
+    if not isinstance(patch, dict):
+        return copy.deepcopy(patch)
+    out = copy.deepcopy(target) if isinstance(target, dict) else {}
+    for key, value in patch.items():
+        if value is None:
+            out.pop(key, None)
+        else:
+            out[key] = merge(out.get(key), value)
+    return out
+
+
+def portable(raw: dict[str, Any], base_dir: Path) -> dict[str, Any]:
+    """The user's spec with data paths made absolute (so the written spec runs from any folder)."""
+    out = copy.deepcopy(raw)
+    data = out.get("data") or {}
+    for section in [data, data.get("test") or {}, data.get("validation") or {}]:
+        p = section.get("path") if isinstance(section, dict) else None
+        if isinstance(p, str):
+            section["path"] = str(_absolute(p, base_dir))
+        elif isinstance(p, list):
+            section["path"] = [str(_absolute(x, base_dir)) for x in p]
+    return out
+
+
+def _absolute(p: str, base_dir: Path) -> Path:
+    path = Path(p).expanduser()
+    return path if path.is_absolute() else (base_dir / path).resolve()
+
+
+def apply(raw: dict[str, Any], patch: dict[str, Any], source: str, base_dir: Path):
+    """(patched mapping, validated spec); SpecError when the patch gives an invalid spec."""
+    patched = merge(raw, patch)
+    return patched, validate_spec(patched, source, base_dir)

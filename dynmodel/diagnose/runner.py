@@ -1,0 +1,248 @@
+"""The diagnosis loop: fit the baseline, run every detector, measure the proposed extensions, keep the
+best on validation, measure the gain on the held-out test split, and optionally go another round.
+
+An extension is measured by refitting the patched spec; candidates are compared on the free-run NMSE
+of the validation split (train when there is none), never on the test split's outputs, which only
+score the chosen model. A candidate whose free run diverges on some recording's *input* (test
+recordings included: the divergence band comes from the training outputs, so this screen uses no
+measured test output) ranks after every candidate that stays stable. A round stops the loop when
+nothing is significant (adequate), when no candidate lowers the validation NMSE by at least
+``MIN_GAIN`` (relative), or after ``rounds``.
+"""
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import registry
+from ..errors import DynmodelError
+from ..family import Progress, no_progress
+from . import patch as patch_mod
+from .context import Context
+from .detector import Extension, Finding, Settings, rank
+from .fitting import Fit, Fitter
+from .gain import measure_gain
+
+MIN_GAIN = 0.01
+
+
+@dataclass
+class Candidate:
+    cause: str
+    extension: Extension
+    fit: Fit | None = None
+    error: str | None = None
+
+    def score(self, split: str) -> float:
+        return float("inf") if self.fit is None else self.fit.nmse(split)
+
+    @property
+    def diverges(self) -> bool:
+        """Does the free run leave the divergence band on any recording (inputs only decide this)?"""
+        return self.fit is None or any(r.diverged_at is not None for r in self.fit.runs)
+
+    def rank(self, split: str) -> tuple[bool, float]:
+        return self.diverges, self.score(split)
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"cause": self.cause, **self.extension.to_json()}
+        if self.fit is not None:
+            out["metrics"] = self.fit.metrics
+            out["fit_seconds"] = self.fit.seconds
+        if self.error:
+            out["error"] = self.error
+        return out
+
+
+@dataclass
+class Round:
+    index: int
+    fit: Fit
+    findings: list[Finding]
+    memory: int | None
+    candidates: list[Candidate] = field(default_factory=list)
+    chosen: Candidate | None = None
+    accepted: bool = False
+    outcome: str = ""
+    seconds: float = 0.0
+
+    @property
+    def significant(self) -> list[Finding]:
+        return [f for f in self.findings if f.significant]
+
+    @property
+    def verdict(self) -> str:
+        return self.significant[0].cause if self.significant else "adequate"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"round": self.index, "verdict": self.verdict, "model_memory_samples": self.memory,
+                "findings": [f.to_json() for f in self.significant],
+                "candidates": [c.to_json() for c in self.candidates],
+                "chosen": None if self.chosen is None else self.chosen.to_json(), "accepted": self.accepted,
+                "outcome": self.outcome,
+                "seconds": self.seconds}
+
+
+@dataclass
+class Diagnosis:
+    name: str
+    source: str
+    settings: Settings
+    rounds: list[Round]
+    gain: dict[str, Any] | None
+    seconds: float = 0.0
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def baseline(self) -> Fit:
+        return self.rounds[0].fit
+
+    @property
+    def findings(self) -> list[Finding]:
+        """The baseline's significant findings, the named cause first."""
+        return self.rounds[0].significant
+
+    @property
+    def checks(self) -> list[Finding]:
+        return self.rounds[0].findings
+
+    @property
+    def verdict(self) -> str:
+        return self.rounds[0].verdict
+
+    @property
+    def applied(self) -> list[Candidate]:
+        """The extensions applied in turn (the first round's best even when it brought no gain)."""
+        accepted = [r.chosen for r in self.rounds if r.accepted and r.chosen is not None]
+        if not accepted and self.rounds[0].chosen is not None:
+            return [self.rounds[0].chosen]
+        return accepted
+
+    @property
+    def final(self) -> Fit | None:
+        """The extended model, None when nothing was extended (adequate, or no extension fitted)."""
+        applied = self.applied
+        return applied[-1].fit if applied else None
+
+    @property
+    def extended_spec(self) -> dict[str, Any] | None:
+        final = self.final
+        return None if final is None else final.raw
+
+    def to_json(self) -> dict[str, Any]:
+        base = self.baseline
+        final = self.final
+        extended: dict[str, Any] = {"spec": self.extended_spec, "metrics": None if final is None else final.metrics}
+        extended["extensions"] = [{"cause": c.cause, **c.extension.to_json()} for c in self.applied]
+        extended["rounds"] = [r.to_json() for r in self.rounds]
+        return {
+            "baseline": {"metrics": base.metrics, "verdict": self.verdict, "family": base.spec.model.family,
+                         "cost": base.spec.cost, "model_memory_samples": self.rounds[0].memory,
+                         "checks": [f.to_json() for f in self.checks], "settings": self.settings.to_json(),
+                         "notes": self.notes, "seconds": self.seconds},
+            "findings": [f.to_json() for f in self.findings],
+            "extended": extended,
+            "gain": self.gain if self.gain is not None else {"test_nmse_before": _test(base, "nmse"),
+                                                             "test_nmse_after": None, "relative_reduction": None},
+        }
+
+
+def _test(fit: Fit, metric: str) -> float | None:
+    m = fit.metrics.get("test") or {}
+    return m.get(metric)
+
+
+def detect(fit: Fit, settings: Settings, fitter: Fitter, progress: Progress = no_progress) -> tuple[list[Finding], int | None]:
+    """Every installed detector on one fitted model; findings ranked (significant first, by score)."""
+    ctx = Context(fit, settings, fitter, progress)
+    if ctx.n < 50:
+        raise DynmodelError(f"only {ctx.n} scored train/validation samples before the free run ends",
+                            fit.spec.source, "provide more data (the diagnosis needs the free-running residual)")
+    findings = []
+    for cause, cls in registry.detectors().items():
+        progress("detect", None, cause)
+        found = cls().detect(ctx)
+        if found is not None:
+            found.cause = cause
+            findings.append(found)
+    memory = ctx.__dict__.get("memory")
+    return rank(findings), memory
+
+
+def _candidates(findings: list[Finding], limit: int) -> list[tuple[str, Extension]]:
+    """Extensions of the named cause (then of the next findings) up to ``limit``, without repeats."""
+    out, seen = [], set()
+    for f in findings:
+        if not f.significant:
+            continue
+        for ext in f.extensions:
+            key = repr(ext.patch)
+            if key not in seen:
+                seen.add(key)
+                out.append((f.cause, ext))
+        if out:
+            break  # the named cause's own extensions; a later round takes the next cause
+    return out[:limit]
+
+
+def diagnose(raw: dict[str, Any], source: str, base_dir: Path, settings: Settings | None = None,
+             progress: Progress = no_progress) -> Diagnosis:
+    """Diagnose the spec mapping ``raw`` (as loaded from ``source``, relative paths against ``base_dir``)."""
+    settings = settings or Settings()
+    t_start = time.perf_counter()
+    fitter = Fitter(source, base_dir, progress)
+    raw = patch_mod.portable(raw, base_dir)
+    notes: list[str] = []
+    with warnings.catch_warnings(record=True) as caught:
+        current = fitter.fit(raw, label="baseline")
+        rounds: list[Round] = []
+        for index in range(1, max(1, settings.rounds) + 1):
+            t0 = time.perf_counter()
+            findings, memory = detect(current, settings, fitter, progress)
+            rnd = Round(index, current, findings, memory)
+            rounds.append(rnd)
+            cands = _candidates(findings, settings.candidates)
+            if not rnd.significant:
+                rnd.outcome = "adequate: no cause is significant"
+            elif not cands:
+                rnd.outcome = f"{rnd.verdict}: no extension this family can express"
+            else:
+                split = "validation" if "validation" in current.metrics else "train"
+                for cause, ext in cands:
+                    cand = Candidate(cause, ext)
+                    try:
+                        patched = patch_mod.merge(current.raw, ext.patch)
+                        cand.fit = fitter.fit(patched, label=f"{cause}: {ext.summary}")
+                    except DynmodelError as exc:
+                        cand.error = exc.line()
+                    rnd.candidates.append(cand)
+                best = min(rnd.candidates, key=lambda c: c.rank(split))
+                now, new = current.nmse(split), best.score(split)
+                if best.fit is None:
+                    rnd.outcome = "every extension failed to fit"
+                else:
+                    rnd.chosen = best
+                    improved = np.isfinite(new) and (not np.isfinite(now) or new < (1 - MIN_GAIN) * now)
+                    rnd.outcome = (f"{split} NMSE {now:.4g} % -> {new:.4g} %" +
+                                   ("" if improved else " (no gain: stop)"))
+                    if improved:
+                        rnd.accepted = True
+                        current = best.fit
+            rnd.seconds = time.perf_counter() - t0
+            if not rnd.accepted:
+                break
+        result = Diagnosis(raw.get("name", "model"), source, settings, rounds, None, 0.0, notes)
+        if result.final is not None:
+            progress("gain", None, "uncertainty of the test NMSE")
+            result.gain = measure_gain(fitter, rounds[0].fit, result.final, settings)
+    for w in caught:
+        text = str(w.message)
+        if text not in notes:
+            notes.append(text)
+    result.seconds = time.perf_counter() - t_start
+    return result

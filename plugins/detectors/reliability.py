@@ -1,0 +1,36 @@
+"""unreliable-model: the fitted network fails the reliability check (thesis 4.4.1, 5.3.1).
+
+An unreliable model's free run depends on its initial state, not only on the input, so its
+residual says little about the data; the finding gets score 1 and the check's counterexamples as
+evidence. Families without a driven-system view (e.g. narx) are not checked.
+"""
+from __future__ import annotations
+
+from dynmodel.diagnose.context import Context
+from dynmodel.diagnose.detector import Detector, Finding
+from dynmodel.reliability import Settings, check_model
+
+from ._extend import rescale
+
+
+class UnreliableModel(Detector):
+    cause = "unreliable-model"
+    description = "the reliability check finds that the model does not forget its initial state (thesis 5.3.1)"
+    priority = 1
+
+    def detect(self, ctx: Context) -> Finding | None:
+        if not ctx.settings.reliability or ctx.model.family.driven_system() is None:
+            return None
+        ctx.progress("reliability", None, "reliability check of the fitted model")
+        settings = Settings(replicas=8, scan_replicas=8, levels=9, length=1000, seed=ctx.settings.seed)
+        report = check_model(ctx.model, settings, None, ctx.spec.name)
+        v = report.verdict
+        significant = v.verdict == "unreliable"
+        evidence = {"statistic": "reliability check (replica test, conditional Lyapunov exponents, constant-input "
+                                 "scan)", "verdict": v.verdict, "reasons": v.reasons[:6],
+                    "counterexamples": v.counterexamples[:6], "unsettled": v.unsettled[:6],
+                    "settings": settings.to_json()}
+        summary = (f"the reliability check finds the model {v.verdict}"
+                   + (f": {v.counterexamples[0]}" if significant and v.counterexamples else ""))
+        return self.finding(ctx, 1.0 if significant else 0.0, significant, summary, evidence,
+                            rescale(ctx) if significant else [])

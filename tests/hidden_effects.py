@@ -1,0 +1,267 @@
+"""Data with one effect hidden in it, for the diagnosis tests (each case draws its strength, lag,
+frequency, ... from its own seed) and the clean twins on which no cause may be named.
+
+Systems: the thesis's NARX system (eq. 3.37) and linear system (eq. 3.19), and friction: a
+position signal with reversals driving a spring-damper with Dahl friction (the pre-sliding
+hysteresis of thesis 6.1/6.2), all written here in plain numpy so the tests do not depend on
+the generators under test.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from scipy import signal
+
+from conftest import write_csv
+
+SPLIT = {"train": 0.6, "validation": 0.2, "test": 0.2}
+
+
+def narx_system(u: np.ndarray, a0: float = 0.8, b0: float = -0.2, c0: float = 1.0) -> np.ndarray:
+    """y_t = a0 y_{t-1} + b0 / (1 + |y_{t-2}|) + c0 u_t (eq. 3.37)."""
+    y = np.zeros(len(u))
+    y1 = y2 = 0.0
+    for t in range(len(u)):
+        y[t] = a0 * y1 + b0 / (1.0 + abs(y2)) + c0 * u[t]
+        y2, y1 = y1, y[t]
+    return y
+
+
+def saturating_system(u: np.ndarray, a0: float = 0.5, b0: float = 0.4) -> np.ndarray:
+    """y_t = a0 y_{t-1} + b0 tanh(y_{t-2}) + u_t: stable, but a polynomial fitted to tanh extrapolates."""
+    y = np.zeros(len(u))
+    y1 = y2 = 0.0
+    for t in range(len(u)):
+        y[t] = a0 * y1 + b0 * np.tanh(y2) + u[t]
+        y2, y1 = y1, y[t]
+    return y
+
+
+def linear_system(u: np.ndarray, a0: float = 0.8, b0: float = 1.0) -> np.ndarray:
+    """y_t = a0 y_{t-1} + b0 u_t (eq. 3.19)."""
+    return signal.lfilter([b0], [1.0, -a0], u)
+
+
+def position(n: int, rng: np.random.Generator, period: float = 400.0) -> np.ndarray:
+    """A smooth position with reversals: three sines of random phase around ``period`` samples."""
+    t = np.arange(n)
+    x = np.zeros(n)
+    for amp, f in zip((1.0, 0.5, 0.3), (1.0, 2.3, 0.37)):
+        x += amp * np.sin(2 * np.pi * f * t / period + rng.uniform(0, 2 * np.pi))
+    return x
+
+
+def dahl(x: np.ndarray, sigma: float, fc: float) -> np.ndarray:
+    """Dahl friction force driven by a position, dF/dx = sigma (1 - F / Fc sgn(dx)), integrated exactly
+    over each step: F <- d Fc + (F - d Fc) exp(-sigma |dx| / Fc), d = sgn(dx)."""
+    f = np.zeros(len(x))
+    for t in range(1, len(x)):
+        dx = x[t] - x[t - 1]
+        d = np.sign(dx)
+        f[t] = d * fc + (f[t - 1] - d * fc) * np.exp(-sigma * abs(dx) / fc)
+    return f
+
+
+def ema(u: np.ndarray, tau: float) -> np.ndarray:
+    a = 1.0 / tau
+    return signal.lfilter([a], [1.0, -(1.0 - a)], u)
+
+
+@dataclass
+class Case:
+    cause: str  # the hidden cause ("adequate" for a clean case)
+    columns: dict[str, np.ndarray]
+    model: dict[str, Any]
+    truth: dict[str, Any] = field(default_factory=dict)
+    cost: str = "mse1"
+    data: dict[str, Any] = field(default_factory=dict)  # extra data keys
+    sampling_time: float = 1.0
+
+    def spec(self, folder: Path) -> dict[str, Any]:
+        path = write_csv(folder / f"{self.cause}.csv", self.columns)
+        names = list(self.columns)
+        data = {"path": str(path), "input": names[:-1], "output": names[-1:], "split": dict(SPLIT),
+                "sampling_time": self.sampling_time, **self.data}
+        return {"name": self.cause, "data": data, "model": self.model, "cost": self.cost, "seed": 0}
+
+
+NARX3 = {"family": "narx", "params": {"degree": 3}}
+#: position to force without output feedback: exact for a spring-damper, F = k x + c dx/dt
+FIR_X = {"family": "narx", "params": {"lags": {"x": [0, 1, 2]}, "degree": 2}}
+
+
+def missing_delay(seed: int, n: int = 6000) -> Case:
+    rng = np.random.default_rng(seed)
+    lag, gain = int(rng.integers(25, 150)), float(rng.uniform(0.3, 0.6))
+    u = rng.standard_normal(n)
+    y = narx_system(u)
+    y[lag:] += gain * u[:-lag]
+    return Case("missing-delay", {"u": u, "y": y}, {"family": "narx", "params": {"degree": 2}},
+                {"lag": lag, "gain": gain}, sampling_time=0.002)
+
+
+def sensor_drift(seed: int, n: int = 6000) -> Case:
+    rng = np.random.default_rng(seed)
+    st = 0.004
+    u = rng.standard_normal(n)
+    y = narx_system(u)
+    t = np.arange(n) * st
+    tau = float(rng.uniform(0.1, 0.4)) * t[-1]
+    size = float(rng.uniform(0.4, 0.8)) * y.std()
+    slope = float(rng.uniform(0.0, 0.3)) * size / t[-1]
+    y += size * (1 - np.exp(-t / tau)) + slope * t
+    return Case("sensor-drift", {"u": u, "y": y}, NARX3, {"tau": tau, "size": size, "slope": slope}, sampling_time=st)
+
+
+def noise_bias(seed: int, n: int = 6000) -> Case:
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    y = narx_system(u)
+    level = float(rng.uniform(0.5, 1.0))
+    noisy = y.copy()
+    cut = int(0.8 * n)  # train and validation are measured with noise, the test split is clean
+    noisy[:cut] += level * y.std() * rng.standard_normal(cut)
+    return Case("noise-bias", {"u": u, "y": noisy}, NARX3, {"noise": level})
+
+
+def instability(seed: int, n: int = 6000) -> Case:
+    """Bursts of a larger input in the validation and the test split: a 10-term degree-5 polynomial fitted
+    on the calmer training data extrapolates tanh and diverges there (the user switched off the
+    validation stop and drop_unstable)."""
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    amp = float(rng.uniform(2.5, 3.5))
+    windows = []
+    for lo, hi in ((0.62, 0.74), (0.82, 0.94)):
+        start = int(rng.integers(int(lo * n), int(hi * n)))
+        width = int(rng.integers(150, 250))
+        u[start:start + width] *= amp
+        windows.append([start, start + width])
+    y = saturating_system(u)
+    model = {"family": "narx", "params": {"degree": 5, "drop_unstable": False, "max_terms": 10, "patience": None}}
+    return Case("free-run-instability", {"u": u, "y": y}, model, {"windows": windows, "amp": amp})
+
+
+def direction(seed: int, n: int = 6000) -> Case:
+    rng = np.random.default_rng(seed)
+    x = position(n, rng)
+    fc = float(rng.uniform(0.3, 0.6))
+    sigma = float(rng.uniform(20.0, 60.0))
+    v = np.gradient(x)
+    force = 1.0 * x + 40.0 * v + dahl(x, sigma, fc)
+    force += 0.01 * rng.standard_normal(n)
+    return Case("direction-dependence", {"x": x, "force": force}, FIR_X, {"fc": fc, "sigma": sigma},
+                sampling_time=0.01)
+
+
+def oscillation(seed: int, n: int = 6000) -> Case:
+    rng = np.random.default_rng(seed)
+    f = float(rng.uniform(0.04, 0.2))
+    r = 0.98
+    gain = float(rng.uniform(0.1, 0.25))
+    u = rng.standard_normal(n)
+    slow = linear_system(u)
+    mode = signal.lfilter([gain], [1.0, -2 * r * np.cos(2 * np.pi * f), r * r], u)
+    # the resonance peak of 1 / |1 - 2 r cos(w) z^-1 + r^2 z^-2|: cos(theta) = (1 + r^2) cos(w) / (2 r)
+    peak = float(np.arccos((1 + r * r) * np.cos(2 * np.pi * f) / (2 * r)) / (2 * np.pi))
+    y = slow + mode
+    y += 0.01 * y.std() * rng.standard_normal(n)
+    model = {"family": "narx", "params": {"lags": {"u": [0, 1, 2], "y": [1]}, "degree": 2}}
+    st = 0.001
+    return Case("unmodeled-oscillation", {"u": u, "y": y}, model, {"frequency_hz": peak / st},
+                sampling_time=st)
+
+
+def static_nonlinearity(seed: int, n: int = 6000) -> Case:
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    g = float(rng.uniform(0.2, 0.5))
+    y = linear_system(u) + g * np.tanh(1.5 * u) ** 2 - g * np.tanh(1.5 * u) ** 3 * 0.5
+    model = {"family": "narx", "params": {"lags": {"u": [0, 1], "y": [1]}, "degree": 1}}
+    return Case("static-nonlinearity", {"u": u, "y": y}, model, {"gain": g})
+
+
+def _fir(u: np.ndarray) -> np.ndarray:
+    u1, u2 = np.r_[0.0, u[:-1]], np.r_[0.0, 0.0, u[:-2]]
+    return u + 0.5 * u1 - 0.3 * u2 ** 2 + 0.2 * u * u1
+
+
+def insufficient_memory(seed: int, n: int = 6000) -> Case:
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    tau = float(rng.uniform(20, 80))
+    g = float(rng.uniform(2.0, 4.0))
+    y = _fir(u) + g * ema(u, tau)
+    model = {"family": "narx", "params": {"lags": {"u": [0, 1, 2, 3]}, "degree": 2}}
+    return Case("insufficient-memory", {"u": u, "y": y}, model, {"tau": tau, "gain": g})
+
+
+def unreliable(seed: int, n: int = 4000) -> Case:
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    y = narx_system(u)
+    value = float(rng.uniform(1.6, 2.2))
+    model = {"family": "esn", "params": {"size": 60, "connectivity": 0.2, "bias_scale": 0.0,
+                                         "scale": {"by": "spectral", "value": value}}}
+    return Case("unreliable-model", {"u": u, "y": y}, model, {"spectral_radius": value})
+
+
+def clean_narx(seed: int, n: int = 6000) -> Case:
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    return Case("adequate", {"u": u, "y": narx_system(u)}, NARX3)
+
+
+def clean_friction(seed: int, n: int = 6000) -> Case:
+    """A spring-damper position-to-force system with a little measurement noise and an exact model."""
+    rng = np.random.default_rng(seed)
+    x = position(n, rng)
+    v = np.gradient(x)
+    force = 1.0 * x + 40.0 * v + 0.01 * rng.standard_normal(n)
+    return Case("adequate", {"x": x, "force": force}, FIR_X, sampling_time=0.01)
+
+
+def clean_noisy_linear(seed: int, n: int = 6000) -> Case:
+    """The linear system (eq. 3.19) measured with white noise on every split, the model of its exact form
+    estimated on the free-running error: the residual is the noise."""
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    y = linear_system(u)
+    y += float(rng.uniform(0.1, 0.4)) * y.std() * rng.standard_normal(n)
+    model = {"family": "narx", "params": {"lags": {"u": [0], "y": [1]}, "degree": 1}}
+    return Case("adequate", {"u": u, "y": y}, model, cost="mse_inf")
+
+
+def clean_esn(seed: int, n: int = 4000) -> Case:
+    """The NARX system and a reliable echo state network (internal mode, leaky elements)."""
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    model = {"family": "esn", "params": {"size": 100, "relaxation": [0.0, 0.5], "relaxation_gain": True}}
+    return Case("adequate", {"u": u, "y": narx_system(u)}, model)
+
+
+def dahl_generator_spec(seed: int, n: int = 10000) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Friction from the ``dahl`` generator (issue 7's simulators): a multisine position of 10 um std with an
+    8 s period drives Dahl pre-sliding hysteresis of random Coulomb force; 1 % output noise. The baseline
+    sees the position only through its last three samples (narx without output lags). Returns (spec, truth)."""
+    rng = np.random.default_rng(seed)
+    fc = float(rng.uniform(10.0, 30.0))
+    params = {"coulomb": fc, "sigma": 1e7, "position_unit": "um",
+              "trajectory": {"kind": "multisine", "std": 1e-5, "period": 8.0, "band": [0.1, 1.0]}}
+    spec = {"name": "dahl", "data": {"generator": "dahl", "n": n, "seed": seed, "params": params, "split": dict(SPLIT),
+                                     "noise": {"std": 0.01, "splits": ["train", "validation", "test"]}},
+            "model": FIR_X | {"params": {"lags": {"position": [0, 1, 2]}, "degree": 2}}, "seed": 0}
+    return spec, {"coulomb": fc}
+
+
+HIDDEN: dict[str, Callable[[int], Case]] = {
+    "sensor-drift": sensor_drift, "missing-delay": missing_delay, "noise-bias": noise_bias,
+    "free-run-instability": instability, "direction-dependence": direction,
+    "unmodeled-oscillation": oscillation, "static-nonlinearity": static_nonlinearity,
+    "insufficient-memory": insufficient_memory, "unreliable-model": unreliable,
+}
+CLEAN: dict[str, Callable[[int], Case]] = {"narx-system": clean_narx, "spring-damper": clean_friction,
+                                            "noisy-linear": clean_noisy_linear, "esn": clean_esn}

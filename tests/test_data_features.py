@@ -1,0 +1,149 @@
+"""Data-layer features the diagnosis needs and any spec can use: derived input channels (time
+functions, direction of motion, travel since the last reversal), detrending, and resampling of
+non-uniformly sampled files."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import dynmodel
+from dynmodel import engine
+from dynmodel.data import load_dataset
+from dynmodel.data.derived import channel_name, reversals, time_matrix
+from dynmodel.errors import DataError, SpecError
+
+from conftest import make_spec, write_csv, write_yaml
+
+
+def test_reversals_of_a_triangle_with_noise_and_a_deadband():
+    x = np.concatenate([np.linspace(0, 10, 101), np.linspace(10, 2, 81)[1:], np.linspace(2, 6, 41)[1:]])
+    noisy = x + 0.02 * np.random.default_rng(0).standard_normal(len(x))
+    d, s = reversals(noisy, deadband=0.2)
+    assert np.all(d[5:98] == 1) and np.all(d[105:178] == -1) and np.all(d[185:] == 1)
+    assert np.sum(d[1:] != d[:-1]) == 2  # the noise does not flip the direction
+    assert s[178] == pytest.approx(-8.0, abs=0.3) and s[-1] == pytest.approx(4.0, abs=0.3)
+
+
+def test_time_functions_start_at_zero():
+    m = time_matrix(["linear", {"saturating": 2.0}], 5, 0.5)
+    np.testing.assert_allclose(m[:, 0], [0, 0.5, 1.0, 1.5, 2.0])
+    np.testing.assert_allclose(m[:, 1], 1 - np.exp(-m[:, 0] / 2.0))
+    assert channel_name({"time": {"saturating": 2.0}}) == "time_saturating_2"
+    assert channel_name({"direction": "x"}) == "x_direction"
+
+
+def _friction_csv(tmp_path, n=3000, drift=0.0):
+    rng = np.random.default_rng(1)
+    t = np.arange(n)
+    x = np.sin(2 * np.pi * t / 300) + 0.3 * np.sin(2 * np.pi * t / 77)
+    d, _ = reversals(x)
+    force = 2.0 * x + 0.5 * d + drift * t / n + 0.01 * rng.standard_normal(n)
+    return write_csv(tmp_path / "f.csv", {"x": x, "force": force})
+
+
+def test_direction_input_lets_a_static_model_fit_coulomb_friction(tmp_path):
+    path = _friction_csv(tmp_path)
+    raw = {"data": {"path": str(path), "input": ["x"], "output": ["force"]},
+           "model": {"family": "narx", "params": {"lags": {"x": [0]}, "degree": 1}}}
+    plain = dynmodel.fit(make_spec(raw, tmp_path))
+    raw["data"]["derived_inputs"] = [{"direction": "x"}]
+    raw["model"]["params"]["lags"]["x_direction"] = [0]
+    with_dir = dynmodel.fit(make_spec(raw, tmp_path))
+    assert with_dir.preprocessor.model_input_names == ["x", "x_direction"]
+    assert with_dir.metrics["test"]["nmse"] < 0.1 < plain.metrics["test"]["nmse"]
+
+
+def test_detrending_adds_the_trend_back_and_survives_the_model_file(tmp_path):
+    path = _friction_csv(tmp_path, drift=3.0)
+    raw = {"data": {"path": str(path), "input": ["x"], "output": ["force"], "detrend": ["linear"],
+                    "derived_inputs": [{"direction": "x"}, {"time": {"saturating": 500.0}}]},
+           "model": {"family": "narx", "params": {"lags": {"x": [0], "x_direction": [0]}, "degree": 1}}}
+    model = dynmodel.fit(make_spec(raw, tmp_path))
+    assert model.preprocessor.trend_coef[0, 0] == pytest.approx(3.0 / 3000, rel=0.05)
+    assert model.metrics["test"]["nmse"] < 0.1  # scored against the measured, trending output
+    dynmodel.save(model, tmp_path / "m.h5")
+    again = dynmodel.load(tmp_path / "m.h5")
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    np.testing.assert_allclose(again.predict(data[:, 0]), model.predict(data[:, 0]), rtol=1e-12, atol=1e-12)
+    assert again.preprocessor.derived == model.preprocessor.derived
+
+
+def test_time_inputs_model_a_drift(tmp_path):
+    path = _friction_csv(tmp_path, drift=3.0)
+    raw = {"data": {"path": str(path), "input": ["x"], "output": ["force"],
+                    "derived_inputs": [{"direction": "x"}, {"time": "linear"}]},
+           "model": {"family": "narx", "params": {"lags": {"x": [0], "x_direction": [0], "time_linear": [0]},
+                                                  "degree": 1}}}
+    assert dynmodel.fit(make_spec(raw, tmp_path)).metrics["test"]["nmse"] < 0.1
+
+
+def test_derived_input_errors_are_one_line(tmp_path):
+    path = _friction_csv(tmp_path)
+    raw = {"data": {"path": str(path), "input": ["x"], "output": ["force"], "derived_inputs": [{"direction": "q"}]},
+           "model": {"family": "narx"}}
+    with pytest.raises(dynmodel.DynmodelError, match="'q' is not an input column"):
+        dynmodel.fit(make_spec(raw, tmp_path))
+    raw["data"]["derived_inputs"] = [{"direction": "x", "speed": 2}]
+    with pytest.raises(SpecError, match="unknown key 'speed'"):
+        make_spec(raw, tmp_path)
+    raw["data"]["derived_inputs"] = [{"velocity": "x"}]
+    with pytest.raises(SpecError, match="direction: INPUT"):
+        make_spec(raw, tmp_path)
+
+
+def _stamped(tmp_path, name="rig.tsv", jitter=True, n=400):
+    rng = np.random.default_rng(2)
+    steps = 10.0 + (rng.uniform(-3, 3, n - 1) if jitter else np.zeros(n - 1))
+    t = np.concatenate([[0.0], np.cumsum(steps)])
+    t[50:] += 200.0  # a gap of 20 steps
+    u = 0.01 * t  # linear in time: interpolation is exact
+    y = 3.0 + 0.002 * t
+    path = tmp_path / name
+    np.savetxt(path, np.column_stack([t, u, y]), delimiter="\t", fmt="%.10g")
+    return path, t
+
+
+def test_resampling_a_non_uniform_headerless_file(tmp_path):
+    path, t = _stamped(tmp_path)
+    raw = {"data": {"path": str(path), "header": False, "columns": ["t_ms", "u", "y"], "time_column": "t_ms",
+                    "time_unit": 0.001, "resample": 0.01, "input": ["u"], "output": ["y"]},
+           "model": {"family": "narx"}}
+    with pytest.warns(UserWarning, match="gap"):
+        ds = load_dataset(make_spec(raw, tmp_path))
+    assert ds.sampling_time == 0.01
+    rec = ds.recordings[0]
+    assert rec.n == int(np.floor(t[-1] / 10.0 + 1e-9)) + 1
+    grid = np.arange(rec.n) * 10.0
+    np.testing.assert_allclose(rec.u[:, 0], 0.01 * grid, atol=1e-9)
+    np.testing.assert_allclose(rec.y[:, 0], 3.0 + 0.002 * grid, atol=1e-9)
+
+
+def test_time_column_checks(tmp_path):
+    path, _ = _stamped(tmp_path)
+    raw = {"data": {"path": str(path), "header": False, "columns": ["t_ms", "u", "y"], "time_column": "t_ms",
+                    "time_unit": 0.001, "input": ["u"], "output": ["y"]}, "model": {"family": "narx"}}
+    with pytest.raises(DataError, match="not uniform.*Fix: add 'resample: 0.0099"):
+        load_dataset(make_spec(raw, tmp_path))
+    uniform, _ = _stamped(tmp_path, "u.tsv", jitter=False)
+    data = np.loadtxt(uniform)
+    np.savetxt(uniform, np.vstack([data[:50], data[50:] - [200.0, 0, 0]]), delimiter="\t", fmt="%.10g")
+    raw["data"]["path"] = str(uniform)
+    assert load_dataset(make_spec(raw, tmp_path)).sampling_time == pytest.approx(0.01)
+    back = np.loadtxt(uniform)
+    back[10, 0] = back[8, 0]
+    np.savetxt(uniform, back, delimiter="\t", fmt="%.10g")
+    with pytest.raises(DataError, match="do not increase at sample 10"):
+        load_dataset(make_spec(raw, tmp_path))
+    raw["data"].pop("time_column")
+    raw["data"]["resample"] = 0.01
+    with pytest.raises(SpecError, match="resample needs the time stamps"):
+        load_dataset(make_spec(raw, tmp_path))
+
+
+def test_validate_cli_shows_the_resampled_data(cli, tmp_path):
+    path, _ = _stamped(tmp_path)
+    spec = write_yaml(tmp_path / "s.yaml", {"data": {
+        "path": path.name, "header": False, "columns": ["t_ms", "u", "y"], "time_column": "t_ms", "time_unit": 0.001,
+        "resample": 0.01, "input": ["u"], "output": ["y"]}, "model": {"family": "narx"}})
+    r = cli("validate", spec)
+    assert r.exit_code == 0 and "sampling time 0.01" in r.stdout
