@@ -42,7 +42,7 @@ def _provenance(spec, ds: Dataset) -> dict[str, Any]:
 def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
     """Fit the spec's model on an already loaded dataset and evaluate it on every split."""
     data_spec = spec.data
-    pre = Preprocessor.fit(ds, list(data_spec.delay_lines), data_spec.scaling)
+    pre = Preprocessor.fit(ds, list(data_spec.delay_lines), data_spec.scaling, data_spec.delay_form)
     td = training_data(ds, pre)
     family_cls = registry.family(spec.model.family)
     params = spec.model.params.model_dump(mode="python")
