@@ -417,8 +417,10 @@ def reliability_check(
 
 
 # ------------------------------------------------------------------------------ control
-def _pm(stats: dict[str, float], digits: int = 4) -> str:
-    return f"{stats['mean']:.{digits}g} ± {stats['std']:.2g}"
+def _pm(stats: dict[str, float], percent_points: bool = False) -> str:
+    """mean ± std; alpha / beta with three decimals (99.998 must not print as 100)."""
+    mean = f"{stats['mean']:.3f}" if percent_points else f"{stats['mean']:.4g}"
+    return f"{mean} ± {stats['std']:.2g}"
 
 
 @app.command()
@@ -486,8 +488,9 @@ def control(model_path: Path = typer.Argument(..., metavar="MODEL", help="model 
     table.add_column("model (mean ± std)", justify="right")
     table.add_column("perfect model", justify="right")
     for c in ctl.CRITERIA:
-        perf = "(same run)" if c in ("nmse_p", "max_p") else _pm(summary["perfect"][c])
-        table.add_row(ctl.LABELS[c], _pm(summary["model"][c]), perf)
+        pp = c in ("alpha", "beta")
+        perf = "(same run)" if c in ("nmse_p", "max_p") else _pm(summary["perfect"][c], pp)
+        table.add_row(ctl.LABELS[c], _pm(summary["model"][c], pp), perf)
     out.print(table)
     for note in report.notes:
         out.print(f"note: {escape(note)}")
