@@ -96,9 +96,36 @@ def control(out: Path, figures: Path | None, realizations: int) -> dict:
     return results
 
 
+def emps_physical() -> None:
+    """Baseline: M q'' + F_v q' + F_c sign(q') + offset = gtau vir, least squares on filtered
+    derivatives of the training file (IDIM-style), simulated open loop from vir on the test file."""
+    import scipy.io
+    from scipy.signal import butter, filtfilt
+
+    folder = ROOT.parent / "shared" / "data" / "emps"
+    train, test = (scipy.io.loadmat(folder / f) for f in ("DATA_EMPS.mat", "DATA_EMPS_PULSES.mat"))
+    h, gtau = 1e-3, float(np.ravel(train["gtau"])[0])
+    q, u = np.ravel(train["qm"]).astype(float), np.ravel(train["vir"]).astype(float)
+    b, a = butter(4, 20 * 2 * h)  # 20 Hz
+    qd = np.gradient(filtfilt(b, a, q), h)
+    qdd = np.gradient(qd, h)
+    X = np.column_stack([qdd, qd, np.sign(qd), np.ones_like(q)])[100:-100]
+    M, Fv, Fc, off = np.linalg.lstsq(X, gtau * u[100:-100], rcond=None)[0]
+    qt, ut = np.ravel(test["qm"]).astype(float), np.ravel(test["vir"]).astype(float)
+    sim = np.empty_like(qt)
+    sim[:2] = qt[:2]
+    for t in range(2, len(qt)):
+        v = (sim[t - 1] - sim[t - 2]) / h
+        sim[t] = 2 * sim[t - 1] - sim[t - 2] + h * h * (gtau * ut[t - 1] - Fv * v - Fc * np.sign(v) - off) / M
+    rmse = float(np.sqrt(np.mean((sim[20:] - qt[20:]) ** 2)))
+    print(f"  physical model (M {M:.1f} kg, F_v {Fv:.1f} N s/m, F_c {Fc:.1f} N, offset {off:.2f} N), open loop: "
+          f"test RMSE {rmse:.4g}, fit {100 * (1 - rmse / np.std(qt[20:])):.2f} %")
+
+
 def emps(out: Path, figures: Path | None) -> None:
     print("EMPS (real data): train DATA_EMPS, test DATA_EMPS_PULSES, first 20 test samples for the state:")
     fit("emps-benchmark-narx", out, figures)
+    emps_physical()
     print("  published: dynoNet fit 96.8 % (RMSE about 2.64e-3 m); best linear model fit 25.4 %; "
           "NN baselines RMSE 0.074 - 0.22 m")
     fit("emps-cross-esn", out, figures)
@@ -140,7 +167,8 @@ def main() -> None:
     ap.add_argument("--emps", action="store_true")
     ap.add_argument("--all", action="store_true")
     ap.add_argument("--realizations", type=int, default=20)
-    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out", help="folder for model files and JSON")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "friction", help="folder for model files and JSON "
+                    "(out/ is ignored by git)")
     ap.add_argument("--figures", type=Path, default=None, help="folder for PNG figures")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)

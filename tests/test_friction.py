@@ -6,18 +6,16 @@ import json
 
 import numpy as np
 import pytest
-import yaml
 
 import dynmodel
 from dynmodel import control as ctl
-from dynmodel_plugins.friction.laws import (DahlFields, GmsFields, GmsLaw, LuGreFields, initial_stiffness, pack,
-                                            steady_force)
+from dynmodel_plugins.friction.laws import DahlFields, GmsFields, GmsLaw, LuGreFields, initial_stiffness, steady_force
 from dynmodel_plugins.friction.plant import Plant, PlantParams, TrackingTask, simulate
-from dynmodel_plugins.friction.response import LawState, friction_force, trajectory_force
-from dynmodel_plugins.friction.sources import FrictionPlant, Gms
+from dynmodel_plugins.friction.response import LawState, friction_force
+from dynmodel_plugins.friction.sources import FrictionPlant
 from dynmodel_plugins.friction.trajectories import Trajectory, TrajectoryParams
 
-from conftest import ROOT, write_csv, write_yaml
+from conftest import write_csv, write_yaml
 
 
 def ramp(v: float, n: int, h: float, x0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -323,6 +321,7 @@ def test_cli_control_table_json_plot(cli, tmp_path, small_plant_model):
     # the same seed gives the same figures
     r2 = cli("control", small_plant_model, "--duration", 10, "--switch", 5, "--skip", 2, "--realizations", 2,
              "--json", tmp_path / "d.json", "-q")
+    assert r2.exit_code == 0, r2.stderr
     again = json.loads((tmp_path / "d.json").read_text())["model"]
     for c in ctl.CRITERIA:  # equal up to summation order (numpy's SIMD reductions depend on alignment)
         assert again[c]["mean"] == pytest.approx(report["model"][c]["mean"], rel=1e-12)
@@ -381,3 +380,16 @@ def test_cli_generate_plot_shows_the_hysteresis(cli, tmp_path):
     assert (tmp_path / "g.csv").read_text().splitlines()[0] == "t,position,force"
     assert 1.0 < np.std(data[:, 1]) < 20.0  # micrometres
     assert (tmp_path / "g.png").stat().st_size > 20000
+
+
+def test_cli_control_tunes_external_models_in_on_the_p_controlled_force(cli, tmp_path):
+    spec = {"name": "ext", "output": str(tmp_path / "ext.h5"), "cost": "mse_inf",
+            "data": {"generator": "friction-plant", "n": 6000, "seed": 1, "input": ["position"], "output": ["force"],
+                     "split": {"train": 0.8, "validation": 0.2}, "delay_lines": [50, 100]},
+            "model": {"family": "esn", "params": {"size": 50, "mode": "external", "tune_in": 20}}}
+    assert cli("fit", write_yaml(tmp_path / "ext.yaml", spec), "-q").exit_code == 0
+    r = cli("control", tmp_path / "ext.h5", "--duration", 6, "--switch", 3, "--skip", 1, "--realizations", 2,
+            "--json", tmp_path / "c.json", "-q")
+    assert r.exit_code == 0, r.stderr
+    assert "tunes in on its first 20 outputs" in r.stdout
+    assert len(json.loads((tmp_path / "c.json").read_text())["realizations"]) == 2
