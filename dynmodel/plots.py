@@ -121,7 +121,7 @@ def tracking_error(path: Path, t: np.ndarray, reference: np.ndarray, error: np.n
     plt = _pyplot()
     fig = plt.figure(figsize=(11, 9))
     grid = fig.add_gridspec(3, 2, height_ratios=[1.2, 1, 1])
-    end = float(t[-1])
+    end = float(t[-1] + (t[1] - t[0])) if len(t) > 1 else float(t[-1])  # the run's duration
     windows = [(0.6 * switch, "P-control"), (switch + 0.6 * (end - switch), "P-control + feed-forward")]
     position = reference + error
     for col, (a, label) in enumerate(windows):
