@@ -1,5 +1,5 @@
-"""Command line: ``dynmodel fit | validate | predict | inspect | reliability-check | diagnose | plugins | schema |
-generate``.
+"""Command line: ``dynmodel fit | validate | predict | inspect | reliability-check | diagnose | control | plugins |
+schema | generate``.
 
 Tables go to stdout, progress to stderr, machine output to ``--json FILE``. A user's mistake
 gets one line on stderr and exit code 2 (1 when a check ran and failed, e.g. a diverging
@@ -79,8 +79,9 @@ def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
     table = Table(title=title, title_justify="left")
     table.add_column("split")
     table.add_column("samples", justify="right")
-    table.add_column("NMSE %", justify="right")
-    table.add_column("MAX", justify="right")
+    shown = [k for k in ("nmse", "max", "rmse", "fit") if k in ("nmse", "max") or any(k in m for m in metrics.values())]
+    for k in shown:
+        table.add_column({"nmse": "NMSE %", "max": "MAX", "rmse": "RMSE", "fit": "fit %"}[k], justify="right")
     has_one = any("nmse_1" in m for m in metrics.values())
     if has_one:
         table.add_column("NMSE one-step %", justify="right")
@@ -88,9 +89,9 @@ def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
         if m.get("unstable_from"):
             u = m["unstable_from"]
             cell = f"unstable from t = {u['time']:.6g} (sample {u['sample']})"
-            row = [split, str(m["samples"]), cell, "-"]
+            row = [split, str(m["samples"]), cell] + ["-"] * (len(shown) - 1)
         else:
-            row = [split, str(m["samples"]), _fmt(m.get("nmse")), _fmt(m.get("max"))]
+            row = [split, str(m["samples"])] + [_fmt(m.get(k)) for k in shown]
         if has_one:
             row.append(_fmt(m.get("nmse_1")))
         table.add_row(*row)
@@ -293,6 +294,7 @@ def inspect(model_path: Path = typer.Argument(..., metavar="MODEL"),
         "inputs": pre.input_names,
         "outputs": pre.output_names,
         "delay_lines": pre.delay_lines,
+        "delay_form": pre.delay_form,
         "scaling": pre.scaling,
         "sampling_time": pre.sampling_time,
         "tune_in_samples": model.warmup,
@@ -304,7 +306,7 @@ def inspect(model_path: Path = typer.Argument(..., metavar="MODEL"),
     facts = Table(show_header=False, box=None)
     facts.add_column(style="dim")
     facts.add_column()
-    for key in ("cost", "inputs", "outputs", "delay_lines", "scaling", "sampling_time", "tune_in_samples"):
+    for key in ("cost", "inputs", "outputs", "delay_lines", "delay_form", "scaling", "sampling_time", "tune_in_samples"):
         facts.add_row(key, escape(str(summary[key])))
     for key, value in summary["model"].items():
         facts.add_row(key, escape(str(value)))
@@ -506,6 +508,96 @@ def _print_diagnosis(result) -> None:
                   + f"; test MAX {_fmt(g.get('test_max_before'))} -> {_fmt(g.get('test_max_after'))}")
 
 
+# ------------------------------------------------------------------------------ control
+def _pm(stats: dict[str, float], percent_points: bool = False) -> str:
+    """mean ± std; alpha / beta with three decimals (99.998 must not print as 100)."""
+    mean = f"{stats['mean']:.3f}" if percent_points else f"{stats['mean']:.4g}"
+    return f"{mean} ± {stats['std']:.2g}"
+
+
+@app.command()
+@handled
+def control(model_path: Path = typer.Argument(..., metavar="MODEL", help="model file written by dynmodel fit"),
+            plant: Optional[Path] = typer.Option(None, "--plant", help="YAML with 'generator:' and 'params:' of the "
+                                                 "plant (or a dynmodel spec); default: the model's training generator"),
+            param: list[str] = typer.Option([], "--param", "-p", help="plant parameter as key=value, dotted for "
+                                            "nested keys (e.g. law.viscous=0.2; repeatable)"),
+            realizations: int = typer.Option(20, "--realizations", min=1, help="noise realizations"),
+            duration: float = typer.Option(100.0, "--duration", min=0.0, help="length of a run (s)"),
+            switch: float = typer.Option(50.0, "--switch", min=0.0, help="the feed-forward starts here (s)"),
+            skip: float = typer.Option(20.0, "--skip", min=0.0, help="seconds not scored after the start and the switch"),
+            seed: int = typer.Option(0, "--seed", help="seed of the reference and the noise realizations"),
+            hold: str = typer.Option("linear", "--hold", help="feed-forward between samples: linear or zero (constant)"),
+            workers: int = typer.Option(0, "--workers", min=0, help="threads for the realizations (0: one per core)"),
+            json_path: Optional[Path] = typer.Option(None, "--json", help="write every criterion and realization as JSON"),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of the tracking error before and after the "
+                                                "switch (fig. 6.25)"),
+            quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output")) -> None:
+    """Feed-forward control (thesis 6.4): P-control of a plant, the model's force added from the switch on;
+    NMSE / MAX of the tracking error before and after, alpha and beta, and the perfect model's limits."""
+    import yaml
+
+    from . import control as ctl
+    from . import store
+    from .errors import SpecError
+    from .progress import Reporter
+
+    if hold not in ("linear", "zero"):
+        raise SpecError(f"--hold {hold} is not linear or zero", "--hold", "use --hold linear (default) or --hold zero")
+    _warnings_to_stderr()
+    t0 = time.perf_counter()
+    model = store.load(model_path)
+    described = None
+    if plant is not None:
+        if not plant.is_file():
+            raise SpecError("plant description not found", str(plant), "check the path")
+        try:
+            described = yaml.safe_load(plant.read_text(encoding="utf-8"))
+        except yaml.YAMLError as exc:
+            raise SpecError(f"malformed YAML: {str(exc).splitlines()[0]}", str(plant), "check the file") from None
+        if not isinstance(described, dict):
+            raise SpecError("the plant description must be a mapping", str(plant),
+                            "write generator: NAME and params: {...}")
+    name, params = ctl.plant_source(model, described)
+    the_plant, resolved = ctl.make_plant(name, params, _parse_params(param))
+    settings = ctl.Settings(duration=duration, switch=switch, skip=skip, realizations=realizations, seed=seed,
+                            hold=hold, workers=workers)
+    with Reporter(enabled=not quiet) as progress:
+        report = ctl.run(model, the_plant, settings, progress)
+    report.plant.update({"generator": name, "params": resolved})
+    elapsed = time.perf_counter() - t0
+    st = report.settings
+    out.print(f"[bold]control[/]: {escape(str(model_path))} ({model.family.name}, inputs "
+              f"{escape(str(model.input_names))}, delay lines {model.preprocessor.delay_lines or 'none'}"
+              f"{' (differences)' if model.preprocessor.delay_form == 'difference' else ''}) on {name}: "
+              f"{escape(the_plant.description)}")
+    out.print(f"{duration:g} s at {st['sampling_time']:g} s, feed-forward from {switch:g} s ({hold} hold), "
+              f"{skip:g} s skipped after the start and the switch; {realizations} noise realization"
+              f"{'s' if realizations > 1 else ''} (seed {seed}); {elapsed:.1f} s")
+    summary = report.summary()
+    table = Table()
+    table.add_column("criterion")
+    table.add_column("model (mean ± std)", justify="right")
+    table.add_column("perfect model", justify="right")
+    for c in ctl.CRITERIA:
+        pp = c in ("alpha", "beta")
+        perf = "(same run)" if c in ("nmse_p", "max_p") else _pm(summary["perfect"][c], pp)
+        table.add_row(ctl.LABELS[c], _pm(summary["model"][c], pp), perf)
+    out.print(table)
+    for note in report.notes:
+        out.print(f"note: {escape(note)}")
+    if json_path:
+        _write_json(json_path, {"model": str(model_path), **report.to_json()})
+    if plot:
+        from .plots import tracking_error
+
+        s = report.series
+        tracking_error(plot, s["t"], s["reference"], s["error_model"], s["error_perfect"], switch, skip,
+                       f"{model_path.name} on {name}: alpha {summary['model']['alpha']['mean']:.4g} %, "
+                       f"beta {summary['model']['beta']['mean']:.4g} %")
+        out.print(f"plot written to {plot}")
+
+
 # ------------------------------------------------------------------------------ plugins / schema
 @app.command()
 @handled
@@ -548,12 +640,15 @@ def generate(generator: str = typer.Argument(..., help="generator name (see `dyn
              n: int = typer.Option(10000, "--n", min=1, help="number of samples"),
              seed: int = typer.Option(0, "--seed", help="seed of the realization"),
              out_path: Path = typer.Option(..., "--out", help="CSV file to write"),
-             param: list[str] = typer.Option([], "--param", "-p", help="generator parameter as key=value (repeatable)")) -> None:
+             param: list[str] = typer.Option([], "--param", "-p", help="generator parameter as key=value (repeatable)"),
+             plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of the recording: signals against time and "
+                                                 "every output against the first input (hysteresis loops)")) -> None:
     """Write a generated input/output recording as CSV (for trying file-based specs)."""
     import yaml
 
     from . import registry
     from .errors import SpecError
+    from .spec import validation_summary
 
     gen = registry.source(generator)
     values: dict[str, Any] = {}
@@ -564,8 +659,8 @@ def generate(generator: str = typer.Argument(..., help="generator name (see `dyn
         values[key.strip()] = yaml.safe_load(raw)
     try:
         params = gen.Params.model_validate(values)
-    except Exception as exc:
-        raise SpecError(f"invalid parameter: {str(exc).splitlines()[-1].strip()}", "--param",
+    except ValueError as exc:
+        raise SpecError(f"invalid parameter ({validation_summary(exc)})", "--param",
                         f"see the '{generator}' entry of `dynmodel schema`") from None
     u, y = gen.generate(params, n, np.random.default_rng(seed))
     t = np.arange(n) * gen.sampling_time(params)
@@ -573,6 +668,11 @@ def generate(generator: str = typer.Argument(..., help="generator name (see `dyn
     out_path.parent.mkdir(parents=True, exist_ok=True)
     np.savetxt(out_path, np.column_stack([t, u, y]), delimiter=",", header=header, comments="", fmt="%.12g")
     err.print(f"{n} samples of {generator} (seed {seed}) written to {out_path}", markup=False)
+    if plot:
+        from .plots import recording
+
+        recording(plot, t, u, y, list(gen.input_names), list(gen.output_names), f"{generator} (seed {seed})")
+        err.print(f"plot written to {plot}", markup=False)
 
 
 def main() -> None:

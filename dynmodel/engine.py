@@ -45,7 +45,7 @@ def preprocessor(spec, ds: Dataset) -> Preprocessor:
     derived = [item.model_dump(mode="json", exclude_none=True) for item in d.derived_inputs]
     detrend = [fn if isinstance(fn, str) else fn.model_dump(mode="json") for fn in d.detrend]
     try:
-        return Preprocessor.fit(ds, list(d.delay_lines), d.scaling, derived, detrend)
+        return Preprocessor.fit(ds, list(d.delay_lines), d.scaling, derived, detrend, d.delay_form)
     except ValueError as exc:
         raise DynmodelError(str(exc), f"{spec.source}: data", "correct data.derived_inputs") from None
 

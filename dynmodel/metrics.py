@@ -2,6 +2,8 @@
 
 NMSE = 100 % * mean((y - yhat)^2) / var(y)        (eq. 5.48 / 6.17)
 MAX  = max |y - yhat| / std(y)                     (eq. 6.18)
+RMSE = sqrt(mean((y - yhat)^2))                    (in the output's units; benchmark reporting)
+FIT  = 100 % * (1 - RMSE / std(y))                 (the "fit" of the nonlinear benchmarks)
 
 Both are computed per output channel over the scored samples of a split, pooled over
 recordings; ``var(y)`` and ``std(y)`` are those of the measured output on the same samples.
@@ -24,8 +26,15 @@ def max_error(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
 
 
 def rmse(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
+    """Root mean squared error in the output's units, per output column."""
     y, yhat = np.atleast_2d(y.T).T, np.atleast_2d(yhat.T).T
     return np.sqrt(np.mean((y - yhat) ** 2, axis=0))
 
 
-METRICS = {"nmse": nmse, "max": max_error}
+def fit_percent(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
+    """100 % (1 - RMSE / std(y)) per output column (100 % is perfect, 0 % the mean's level)."""
+    y = np.atleast_2d(y.T).T
+    return 100.0 * (1.0 - rmse(y, yhat) / np.maximum(np.std(y, axis=0), np.finfo(float).tiny))
+
+
+METRICS = {"nmse": nmse, "max": max_error, "rmse": rmse, "fit": fit_percent}

@@ -120,7 +120,7 @@ def evaluate(model: FittedModel, ds: Dataset, metrics: list[str] = ("nmse", "max
             yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])
             values = {m: METRICS[m](y, yhat) for m in metrics}
             for m, v in values.items():
-                entry[m] = float(np.max(v)) if m == "max" else float(np.mean(v))
+                entry[m] = float(np.max(v)) if m == "max" else (float(np.min(v)) if m == "fit" else float(np.mean(v)))
             if len(model.output_names) > 1:
                 entry["per_output"] = {name: {m: float(values[m][i]) for m in metrics}
                                        for i, name in enumerate(model.output_names)}

@@ -74,3 +74,84 @@ def measured_vs_simulated(path: Path, t: np.ndarray, y: np.ndarray, yhat: np.nda
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def recording(path: Path, t: np.ndarray, u: np.ndarray, y: np.ndarray, input_names: list[str],
+              output_names: list[str], title: str) -> Path:
+    """A generated recording: inputs and outputs against time, and every output against the first
+    input (for friction data: force against position, the hysteresis loops of fig. 6.2 / 6.5 / 6.8)."""
+    plt = _pyplot()
+    q = y.shape[1]
+    fig = plt.figure(figsize=(11, 4.2 + 3.6 * q))
+    grid = fig.add_gridspec(2 + q, 2, height_ratios=[1, 1] + [1.6] * q)
+    ax_u = fig.add_subplot(grid[0, :])
+    for j, name in enumerate(input_names):
+        ax_u.plot(t, u[:, j], lw=0.7, label=name)
+    ax_u.set_ylabel("input")
+    ax_u.legend(loc="upper right", fontsize=8)
+    ax_y = fig.add_subplot(grid[1, :], sharex=ax_u)
+    for k, name in enumerate(output_names):
+        ax_y.plot(t, y[:, k], lw=0.7, label=name)
+    ax_y.set_ylabel("output")
+    ax_y.set_xlabel("time")
+    ax_y.legend(loc="upper right", fontsize=8)
+    n = len(t)
+    zoom = slice(0, min(n, max(200, n // 10)))
+    for k, name in enumerate(output_names):
+        whole = fig.add_subplot(grid[2 + k, 0])
+        whole.plot(u[:, 0], y[:, k], lw=0.4, color="#1f77b4")
+        whole.set_xlabel(input_names[0])
+        whole.set_ylabel(name)
+        whole.set_title(f"{name} against {input_names[0]}", fontsize=9)
+        near = fig.add_subplot(grid[2 + k, 1])
+        near.plot(u[zoom, 0], y[zoom, k], lw=0.6, color="#d62728")
+        near.set_xlabel(input_names[0])
+        near.set_title(f"the first {zoom.stop} samples", fontsize=9)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def tracking_error(path: Path, t: np.ndarray, reference: np.ndarray, error: np.ndarray, error_perfect: np.ndarray,
+                   switch: float, skip: float, title: str, window: float = 5.0) -> Path:
+    """Thesis fig. 6.25: reference and position in a window before and after the switch, the tracking
+    error over the whole run, and the error after the switch for the model and the perfect model."""
+    plt = _pyplot()
+    fig = plt.figure(figsize=(11, 9))
+    grid = fig.add_gridspec(3, 2, height_ratios=[1.2, 1, 1])
+    end = float(t[-1] + (t[1] - t[0])) if len(t) > 1 else float(t[-1])  # the run's duration
+    windows = [(0.6 * switch, "P-control"), (switch + 0.6 * (end - switch), "P-control + feed-forward")]
+    position = reference + error
+    for col, (a, label) in enumerate(windows):
+        ax = fig.add_subplot(grid[0, col])
+        sel = (t >= a) & (t <= a + window)
+        ax.plot(t[sel], reference[sel], lw=1.0, color="#333333", label="reference")
+        ax.plot(t[sel], position[sel], lw=1.0, ls="--", color="#d62728", label="position")
+        ax.set_title(f"{label}, t in [{a:g}, {a + window:g}]", fontsize=9)
+        ax.legend(loc="upper right", fontsize=8)
+    ax = fig.add_subplot(grid[1, :])
+    ax.plot(t, error, lw=0.5, color="#1f77b4")
+    ax.axvline(switch, color="#555555", ls=":")
+    for a, b in [(0, skip), (switch, switch + skip)]:
+        ax.axvspan(a, b, color="#dddddd", lw=0)
+    ax.set_ylabel("tracking error P - P_r")
+    ax.text(switch, 1.0, " feed-forward on", transform=ax.get_xaxis_transform(), va="top", fontsize=8)
+    ax = fig.add_subplot(grid[2, :])
+    after = t >= switch
+    ax.plot(t[after], error[after], lw=0.5, color="#1f77b4", label="model")
+    ax.plot(t[after], error_perfect[after], lw=0.5, color="#2ca02c", label="perfect model")
+    ax.axvspan(switch, switch + skip, color="#dddddd", lw=0)
+    ax.set_ylabel("error after the switch")
+    ax.set_xlabel("time (s)")
+    ax.legend(loc="upper right", fontsize=8)
+    scored = error[t >= switch + skip]
+    if scored.size and np.isfinite(scored).all():
+        span = 1.2 * float(np.max(np.abs(scored))) or 1.0
+        ax.set_ylim(-span, span)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -33,3 +33,7 @@ class Generator:
     def generate(cls, params: GeneratorParams, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(u, y)`` with shapes ``(n, n_inputs)`` and ``(n, n_outputs)``."""
         raise NotImplementedError
+
+    #: optional: ``control_plant(params)`` returning a :class:`dynmodel.control.Plant`, which makes the
+    #: generator a plant for ``dynmodel control`` (None: not a plant)
+    control_plant: ClassVar[object] = None

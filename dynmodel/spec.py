@@ -24,7 +24,7 @@ from .errors import SpecError
 SPLITS = ("train", "validation", "test")
 SplitName = Literal["train", "validation", "test"]
 COSTS = ("mse1", "mse_inf")
-METRICS = ("nmse", "max")
+METRICS = ("nmse", "max", "rmse", "fit")
 
 
 class StrictModel(BaseModel):
@@ -184,6 +184,9 @@ class DataCommon(StrictModel):
     detrend: list[TimeFunction] = Field(
         default_factory=list, description="remove a trend from the output before fitting: least squares of the training "
         "outputs on these functions of time (e.g. [linear, {saturating: 30}]); predictions get the trend back")
+    delay_form: Literal["copy", "difference"] = Field(
+        "copy", description="copy: the delay lines hold u(t - d) (named u@d); difference: u(t) - u(t - d), scaled to "
+        "unit std on the training split (named u~d; invariant to the level of u, e.g. where a position lies)")
     noise: Optional[NoiseSpec] = None
     scaling: Literal["standard", "none"] = Field("standard", description="standard: zero mean, unit std per channel from the training split")
 
@@ -195,14 +198,16 @@ class FileData(DataCommon, FileSourceFields):
 class EvaluationSpec(StrictModel):
     """Metrics on free-running predictions started at each recording's first sample (thesis 6.2.2)."""
 
-    metrics: list[Literal["nmse", "max"]] = Field(default_factory=lambda: ["nmse", "max"])
+    metrics: list[Literal["nmse", "max", "rmse", "fit"]] = Field(
+        default_factory=lambda: ["nmse", "max"], description="nmse (%), max (in output stds), rmse (output units), "
+        "fit (%: 100 (1 - rmse / std))")
     one_step: bool = Field(True, description="also report the one-step NMSE where the family distinguishes it")
 
     @field_validator("metrics")
     @classmethod
     def _nonempty(cls, v: list[str]) -> list[str]:
         if not v:
-            raise ValueError("list at least one metric: nmse, max")
+            raise ValueError("list at least one metric: nmse, max, rmse, fit")
         return list(dict.fromkeys(v))
 
 
@@ -369,6 +374,20 @@ def _loc_without_tags(loc: tuple) -> tuple:
             continue
         out.append(p)
     return tuple(out)
+
+
+def validation_summary(exc: Exception) -> str:
+    """The first problem of a pydantic ValidationError on one line, as ``where: what``
+    (unknown keys first); other exceptions give their first line."""
+    errors = exc.errors() if isinstance(exc, ValidationError) else []
+    if not errors:
+        return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    e = next((x for x in errors if x["type"] == "extra_forbidden"), errors[0])
+    loc = _dotted(tuple(p for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-"))))
+    msg = "unknown key" if e["type"] == "extra_forbidden" else e["msg"]
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    return f"{loc}: {msg}" if loc else msg
 
 
 def format_validation_error(err: ValidationError, source: str) -> SpecError:

@@ -85,6 +85,23 @@ def test_plugins_schema_validate_generate(cli, tmp_path):
     assert np.allclose(y[1:], 0.7 * 4 * y[:-1] * (1 - y[:-1]) + 0.3 * u[1:], atol=1e-9)
 
 
+def test_rmse_and_fit_metrics(cli, tmp_path):
+    spec = narx_spec(n=3000, test_n=2000, transient=100, size=50, split={"train": 0.8, "validation": 0.2})
+    spec["evaluation"] = {"metrics": ["nmse", "max", "rmse", "fit"]}
+    spec["output"] = str(tmp_path / "m.h5")
+    r = cli("fit", write_yaml(tmp_path / "s.yaml", spec), "--json", tmp_path / "m.json", "-q")
+    assert r.exit_code == 0 and "RMSE" in r.stdout and "fit %" in r.stdout
+    test = json.loads((tmp_path / "m.json").read_text())["metrics"]["test"]
+    # fit = 100 (1 - RMSE / std) and NMSE = 100 RMSE^2 / var on the same samples
+    assert test["fit"] == pytest.approx(100 * (1 - np.sqrt(test["nmse"] / 100)), rel=1e-9)
+
+
+def test_generate_reports_invalid_parameters_on_one_line(cli, tmp_path):
+    r = cli("generate", "linear-system", "-p", "a0=2", "--out", tmp_path / "g.csv")
+    line = _one_line_error(r)
+    assert "a0: Input should be less than 1" in line and "errors.pydantic.dev" not in line
+
+
 # ------------------------------------------------------------------------------ bad input
 
 def _one_line_error(r, code: int = 2) -> str:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from dynmodel.data import Preprocessor, delayed_copies, load_dataset, training_data
+from dynmodel.data import Preprocessor, delayed_copies, delayed_differences, load_dataset, training_data
 from dynmodel.data.readers import read_columns
 from dynmodel.errors import DataError
 
@@ -127,6 +127,40 @@ def test_delay_lines_hold_the_first_value():
     out = delayed_copies(u, [2, 4])
     np.testing.assert_array_equal(out[:, 1], [1, 1, 1, 2, 3, 4])
     np.testing.assert_array_equal(out[:, 2], [1, 1, 1, 1, 1, 2])
+
+
+def test_delay_lines_as_differences():
+    u = np.arange(1.0, 7.0)[:, None] ** 2
+    out = delayed_differences(u, [2])
+    np.testing.assert_array_equal(out[:, 0], u[:, 0])
+    np.testing.assert_array_equal(out[:, 1], [0, 3, 8, 12, 16, 20])  # u(t) - u(t - 2), u(t < 0) = u(0)
+
+
+def test_difference_form_is_level_invariant_scaled_and_stored(tmp_path):
+    """delay_form: difference gives u~d = (u(t) - u(t - d)) / std on training: shifting the input
+    by a constant changes only the undelayed channel; the scale and form survive the model file."""
+    raw = narx_spec(n=3000, split={"train": 0.7, "validation": 0.3}, transient=0, scaling="standard", size=30)
+    raw["data"].update(delay_lines=[5, 50], delay_form="difference")
+    spec = make_spec(raw)
+    ds = load_dataset(spec)
+    pre = Preprocessor.fit(ds, [5, 50], "standard", delay_form="difference")
+    assert pre.model_input_names == ["u", "u~5", "u~50"]
+    u = ds.recordings[0].u
+    v = pre.inputs(u)
+    train = v[:2100]
+    assert np.allclose(train[:, 1:].std(axis=0), 1.0, atol=1e-12)
+    np.testing.assert_allclose(v[:, 2] * pre.difference_scale[1] * pre.input_scale[0],
+                               u[:, 0] - np.concatenate([np.full(50, u[0, 0]), u[:-50, 0]]), atol=1e-12)
+    np.testing.assert_allclose(pre.inputs(u + 7.0)[:, 1:], v[:, 1:], atol=1e-9)
+    from dynmodel import engine, store
+
+    model = engine.fit(spec)
+    assert model.preprocessor.delay_form == "difference"
+    store.save(model, tmp_path / "m.h5")
+    back = store.load(tmp_path / "m.h5")
+    assert back.preprocessor.delay_form == "difference"
+    np.testing.assert_array_equal(back.preprocessor.difference_scale, model.preprocessor.difference_scale)
+    np.testing.assert_allclose(back.predict(u[:500]), model.predict(u[:500]), rtol=1e-12)
 
 
 def test_scaling_uses_training_statistics_and_hides_test_outputs():

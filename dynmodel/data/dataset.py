@@ -144,8 +144,10 @@ def _generator_recording(src: dict[str, Any], where: str) -> tuple[Recording, fl
     gen = registry.source(src["generator"])
     try:
         params = gen.Params.model_validate(src.get("params") or {})
-    except Exception as exc:
-        raise SpecError(f"invalid generator params: {str(exc).splitlines()[-1].strip()}", f"{where}.params",
+    except ValueError as exc:
+        from ..spec import validation_summary
+
+        raise SpecError(f"invalid generator params ({validation_summary(exc)})", f"{where}.params",
                         f"see the '{src['generator']}' section of `dynmodel schema`") from None
     rng = np.random.default_rng(int(src.get("seed", 0)))
     u, y = gen.generate(params, int(src.get("n", 10000)), rng)

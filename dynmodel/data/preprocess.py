@@ -1,7 +1,10 @@
 """Map physical signals to the model's space and back: delay lines, derived inputs, detrending, scaling.
 
 Delay lines (thesis 6.3.2) append, for every input channel, copies delayed by the given numbers
-of samples; before a recording's first sample the delayed copy holds that first value. Derived
+of samples; before a recording's first sample the delayed copy holds that first value. With
+``delay_form: difference`` they append u(t) - u(t - d) instead, rescaled to unit standard deviation
+on the training split: the same information, but invariant to where the signal lies (a position
+enters as the displacements over the last d samples, which is what friction depends on). Derived
 inputs (:mod:`.derived`: time functions, direction of motion, change since the last reversal)
 follow them. Detrending subtracts T(t) = sum_j c_j f_j(t) from the outputs, the c_j fitted by
 least squares on the training outputs together with one constant per recording and a linear term
@@ -37,6 +40,17 @@ def delayed_copies(u: np.ndarray, delays: list[int]) -> np.ndarray:
     return np.concatenate(out, axis=1)
 
 
+def delayed_differences(u: np.ndarray, delays: list[int]) -> np.ndarray:
+    """``[u, u - u(t - d1), u - u(t - d2), ...]`` (zero before the start)."""
+    if not delays:
+        return u
+    k = u.shape[1]
+    full = delayed_copies(u, delays)
+    for j in range(len(delays)):
+        full[:, k * (j + 1):k * (j + 2)] = u - full[:, k * (j + 1):k * (j + 2)]
+    return full
+
+
 @dataclass
 class Preprocessor:
     input_names: list[str]
@@ -55,10 +69,13 @@ class Preprocessor:
     #: output trend: time functions and their coefficients (len(detrend), n_outputs)
     detrend: list[Any] = field(default_factory=list)
     trend_coef: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    #: delay lines as copies u(t - d) or differences u(t) - u(t - d) (scaled per channel)
+    delay_form: str = "copy"
+    difference_scale: np.ndarray = field(default_factory=lambda: np.ones(0))
 
     @classmethod
     def fit(cls, ds: Dataset, delay_lines: list[int], scaling: str, derived: list[dict[str, Any]] | None = None,
-            detrend: list[Any] | None = None) -> "Preprocessor":
+            detrend: list[Any] | None = None, delay_form: str = "copy") -> "Preprocessor":
         """Trend coefficients, then per-channel mean and std of the training ranges (``scaling: standard``).
 
         Raises ValueError when a derived input names an unknown input column."""
@@ -67,7 +84,8 @@ class Preprocessor:
         derived_mod.check(items, ds.input_names)
         pre = cls(list(ds.input_names), list(ds.output_names), ds.sampling_time, list(delay_lines), scaling,
                   np.zeros(n_in), np.ones(n_in), np.zeros(n_out), np.ones(n_out), items,
-                  np.zeros(len(items)), np.ones(len(items)), list(detrend or []), np.zeros((len(detrend or []), n_out)))
+                  np.zeros(len(items)), np.ones(len(items)), list(detrend or []), np.zeros((len(detrend or []), n_out)),
+                  delay_form, np.ones(n_in * len(delay_lines)))
         train = ds.scored("train")
         if pre.detrend:
             pre.trend_coef = _fit_trend(ds, train, pre.detrend, items)
@@ -82,13 +100,19 @@ class Preprocessor:
                        for r, a, b in train]
                 d = np.concatenate(ds_)
                 pre.derived_offset, pre.derived_scale = d.mean(axis=0), _safe_std(d)
+        if delay_form == "difference" and delay_lines:
+            diffs = [pre._delayed(ds.recordings[r].u)[a:b, n_in:] for r, a, b in train]
+            pre.difference_scale = _safe_std(np.concatenate(diffs))
         return pre
 
     @property
     def model_input_names(self) -> list[str]:
+        """Inputs, one block per delay line (``u@d``: copy, ``u~d``: difference u(t) - u(t - d)),
+        then the derived inputs."""
         names = list(self.input_names)
+        mark = "~" if self.delay_form == "difference" else "@"
         for d in self.delay_lines:
-            names += [f"{n}@{d}" for n in self.input_names]
+            names += [f"{n}{mark}{d}" for n in self.input_names]
         return names + [derived_mod.channel_name(item) for item in self.derived]
 
     @property
@@ -99,11 +123,19 @@ class Preprocessor:
         """Physical inputs (n, n_inputs) from a recording's start -> model inputs
         (n, n_inputs * (1 + len(delay_lines)) + len(derived))."""
         u = _columns(u, len(self.input_names), "input")
-        um = delayed_copies((u - self.input_offset) / self.input_scale, self.delay_lines)
+        um = self._delayed(u)
+        if self.delay_form == "difference" and self.delay_lines:
+            um[:, len(self.input_names):] /= self.difference_scale
         if not self.derived:
             return um
         extra = derived_mod.compute(self.derived, u, self.input_names, self.sampling_time)
         return np.hstack([um, (extra - self.derived_offset) / self.derived_scale])
+
+    def _delayed(self, u: np.ndarray) -> np.ndarray:
+        scaled = (u - self.input_offset) / self.input_scale
+        if self.delay_form == "difference":
+            return delayed_differences(scaled, self.delay_lines)
+        return delayed_copies(scaled, self.delay_lines)
 
     def trend(self, n: int) -> np.ndarray:
         """The output trend T(t) (n, n_outputs) over the first n samples of a recording (zero at t = 0)."""
@@ -134,6 +166,9 @@ class Preprocessor:
         if self.detrend:
             arrays["trend_coef"] = self.trend_coef
             attrs["detrend"] = self.detrend
+        if self.delay_form != "copy":
+            arrays["difference_scale"] = self.difference_scale
+            attrs["delay_form"] = self.delay_form
         return arrays, attrs
 
     @classmethod
@@ -149,6 +184,9 @@ class Preprocessor:
         if attrs.get("detrend"):
             pre.detrend = list(attrs["detrend"])
             pre.trend_coef = np.asarray(arrays["trend_coef"], dtype=np.float64).reshape(len(pre.detrend), -1)
+        pre.delay_form = str(attrs.get("delay_form", "copy"))  # files written before the difference form hold copies
+        pre.difference_scale = np.asarray(arrays.get("difference_scale", np.ones(len(pre.input_names) * len(pre.delay_lines))),
+                                          dtype=np.float64)
         return pre
 
 

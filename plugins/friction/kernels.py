@@ -36,6 +36,8 @@ def stribeck(v: float, p: np.ndarray) -> float:
         e = r * r
     else:
         e = r ** p[6]
+    if e > 745.0:  # exp(-e) underflows to 0 (double precision)
+        return p[3]
     return p[3] + (p[4] - p[3]) * math.exp(-e)
 
 
@@ -119,9 +121,10 @@ def law_force(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, x: np.nda
 
 # ----------------------------------------------------------------------------- plant
 @njit(inline="always", **_JIT)
-def _rates(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, mode: np.ndarray, V: float,
+def _rates(kind: int, p: np.ndarray, k: np.ndarray, inv_nu: np.ndarray, mode: np.ndarray, V: float,
            S: np.ndarray, dS: np.ndarray) -> float:
-    """dS/dt of the law states at velocity V (into dS); returns the law's force (without sigma2 v)."""
+    """dS/dt of the law states at velocity V (into dS); returns the law's force (without sigma2 v).
+    ``inv_nu`` = 1 / nu_i."""
     sigma0, sigma1, fc, vd, C = p[0], p[1], p[3], p[7], p[8]
     if kind == 0:
         dS[0] = V - sigma0 * abs(V) * S[0] / fc
@@ -132,14 +135,14 @@ def _rates(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, mode: np.nda
         dS[0] = zdot
         s1 = sigma1 * math.exp(-(V / vd) ** 2) if vd > 0.0 else sigma1
         return sigma0 * S[0] + s1 * zdot
-    g = stribeck(V, p)
+    cg = C / stribeck(V, p)
     f = 0.0
     for i in range(S.shape[0]):
         f += S[i]
         if mode[i] == 0.0:
             dS[i] = k[i] * V
         else:
-            dS[i] = C * (mode[i] - S[i] / (nu[i] * g))
+            dS[i] = C * mode[i] - cg * S[i] * inv_nu[i]
     return f
 
 
@@ -175,6 +178,7 @@ def plant_run(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, mass: flo
     sigma2 = p[2]
     m_inv = 1.0 / mass
     ns = S.shape[0]
+    inv_nu = 1.0 / nu
     k1 = np.empty(ns)
     k2 = np.empty(ns)
     k3 = np.empty(ns)
@@ -187,7 +191,7 @@ def plant_run(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, mass: flo
     for j in range(start, stop):
         base = j * two_s
         r = noise[j]
-        flaw = _rates(kind, p, k, nu, mode, V, S, dummy)
+        flaw = _rates(kind, p, k, inv_nu, mode, V, S, dummy)
         u = kp * (ref[base] - P) + kd * (dref[base] - V) + ff[j]
         position[j] = P
         force[j] = u
@@ -204,7 +208,7 @@ def plant_run(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, mass: flo
             a1 = (s + 0.5) / substeps
             a2 = (s + 1.0) / substeps
             # stage 1
-            fl = _rates(kind, p, k, nu, mode, V, S, k1)
+            fl = _rates(kind, p, k, inv_nu, mode, V, S, k1)
             u = kp * (ref[i0] - P) + kd * (dref[i0] - V) + f0 + a0 * df
             dP1 = V
             dV1 = (u - fl - sigma2 * V - r) * m_inv
@@ -213,7 +217,7 @@ def plant_run(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, mass: flo
             V2 = V + 0.5 * h * dV1
             for i in range(ns):
                 St[i] = S[i] + 0.5 * h * k1[i]
-            fl = _rates(kind, p, k, nu, mode, V2, St, k2)
+            fl = _rates(kind, p, k, inv_nu, mode, V2, St, k2)
             u = kp * (ref[i0 + 1] - P2) + kd * (dref[i0 + 1] - V2) + f0 + a1 * df
             dP2 = V2
             dV2 = (u - fl - sigma2 * V2 - r) * m_inv
@@ -222,7 +226,7 @@ def plant_run(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, mass: flo
             V3 = V + 0.5 * h * dV2
             for i in range(ns):
                 St[i] = S[i] + 0.5 * h * k2[i]
-            fl = _rates(kind, p, k, nu, mode, V3, St, k3)
+            fl = _rates(kind, p, k, inv_nu, mode, V3, St, k3)
             u = kp * (ref[i0 + 1] - P3) + kd * (dref[i0 + 1] - V3) + f0 + a1 * df
             dP3 = V3
             dV3 = (u - fl - sigma2 * V3 - r) * m_inv
@@ -231,7 +235,7 @@ def plant_run(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, mass: flo
             V4 = V + h * dV3
             for i in range(ns):
                 St[i] = S[i] + h * k3[i]
-            fl = _rates(kind, p, k, nu, mode, V4, St, k4)
+            fl = _rates(kind, p, k, inv_nu, mode, V4, St, k4)
             u = kp * (ref[i0 + 2] - P4) + kd * (dref[i0 + 2] - V4) + f0 + a2 * df
             dP4 = V4
             dV4 = (u - fl - sigma2 * V4 - r) * m_inv

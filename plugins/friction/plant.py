@@ -41,11 +41,21 @@ class PlantParams(GeneratorParams):
     mass: float = Field(5.0, gt=0, description="moving mass m (kg)")
     kp: float = Field(4000.0, ge=0, description="proportional gain K_p of the position controller (N/m)")
     kd: float = Field(0.0, ge=0, description="derivative gain (N s/m); 0: the P-controller of 6.4")
-    law: Law = Field(default_factory=_default_law, description="friction law: {type: gms | lugre | dahl, ...}")
+    law: Law = Field(default_factory=_default_law, description="friction law: {type: gms | lugre | dahl, ...}; "
+                     "keys of a GMS law not given take the plant's defaults (10 elements, viscous 0.2, "
+                     "pre-sliding 0.1 - 5 mm)")
     noise: float = Field(0.05, ge=0, description="internal noise r ~ U[-noise, noise] (N), a new value every sample")
     reference: TrajectoryParams = Field(default_factory=_default_reference, description="reference trajectory P_r")
     sampling_time: float = Field(0.001, gt=0, description="seconds between samples")
     substeps: int = Field(10, ge=1, le=1000, description="RK4 steps per sample")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _law_defaults(cls, data):
+        """A GMS law given in part takes the plant's defaults (friction system 1) for the rest."""
+        if isinstance(data, dict) and isinstance(data.get("law"), dict) and data["law"].get("type", "gms") == "gms":
+            data = {**data, "law": {**_default_law().model_dump(), **data["law"]}}
+        return data
 
     @model_validator(mode="after")
     def _resolution(self):

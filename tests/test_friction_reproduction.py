@@ -1,0 +1,104 @@
+"""Thesis chapter 6 reproductions with the shipped specs: pre-sliding and sliding cross-prediction
+(6.2 / 6.3), feed-forward control of the GMS plant (6.4.5), and the real EMPS benchmark.
+
+Thresholds sit a little above the figures measured on the reference machine (README, Results);
+the 6.4.5 targets of the issue (alpha >= 99.5 %, beta >= 90 %) are asserted as they stand and
+marked as an expected failure while they are not reached (strict: a model that reaches them
+turns the mark into a failure, so it gets removed)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import dynmodel
+from dynmodel import control as ctl
+from dynmodel.spec import load_spec
+
+from conftest import ROOT, SHARED_DATA
+
+SPECS = ROOT / "specs"
+EMPS = SHARED_DATA / "emps"
+needs_emps = pytest.mark.skipif(not (EMPS / "DATA_EMPS.mat").is_file(),
+                                reason=f"the EMPS benchmark data are not in {EMPS} (see the README)")
+
+
+def fitted(name: str, tmp_path):
+    spec = load_spec(SPECS / f"{name}.yaml")
+    spec.output = str(tmp_path / f"{name}.h5")
+    return dynmodel.fit(spec)
+
+
+# ----------------------------------------------------------------------------- 6.2 pre-sliding
+def test_presliding_networks_beat_the_narx_model(tmp_path):
+    """6.2.3: free-running test NMSE on the last 8000 of 24000 samples (thesis, measured data:
+    RNN 0.86 %, NARX 2.49 %). Measured here: NARX 4.3 %, annealed RNN 1.9 %, ESN 1.0 %."""
+    nmse = {name: fitted(f"thesis-6.2-presliding-{name}", tmp_path).metrics["test"]["nmse"]
+            for name in ("narx", "rnn", "esn")}
+    assert nmse["narx"] < 6.0
+    assert nmse["rnn"] < 2.5 and nmse["esn"] < 1.5
+    assert max(nmse["rnn"], nmse["esn"]) < nmse["narx"]
+
+
+# ----------------------------------------------------------------------------- 6.3 sliding
+@pytest.mark.slow
+def test_sliding_networks_beat_the_narx_model(tmp_path):
+    """6.3.2: 110000 samples at 2500 Hz, test on the last 20000 (thesis: RNN 0.13 %, NARX 1.11 %).
+    Measured here: NARX 19.5 %, annealed RNN 5.1 %, ESN 2.3 %."""
+    nmse = {name: fitted(f"thesis-6.3-sliding-{name}", tmp_path).metrics["test"]["nmse"]
+            for name in ("narx", "rnn", "esn")}
+    assert nmse["narx"] is not None and nmse["narx"] < 25.0
+    assert nmse["rnn"] < 7.0 and nmse["esn"] < 3.0
+    assert max(nmse["rnn"], nmse["esn"]) < 0.5 * nmse["narx"]
+
+
+# ----------------------------------------------------------------------------- 6.4.5 control
+@pytest.fixture(scope="module")
+def control_645(tmp_path_factory):
+    d = tmp_path_factory.mktemp("c645")
+    model = fitted("thesis-6.4.5-rnn", d)
+    data = model.spec["data"]
+    plant, _ = ctl.make_plant(data["generator"], data["params"])
+    report = ctl.run(model, plant, ctl.Settings(realizations=5))
+    return model, report.summary()
+
+
+@pytest.mark.slow
+def test_645_feedforward_reduces_the_tracking_error(control_645):
+    """What the shipped model reaches (README: alpha ~98 %, beta ~75 %, NMSE_s ~3.7 %), and the
+    perfect model's limits (thesis: alpha 99.992 %, beta 99.65 %)."""
+    model, s = control_645
+    assert model.metrics["test"]["nmse"] < 5.0
+    assert s["model"]["nmse_ff"]["mean"] < 0.05 * s["model"]["nmse_p"]["mean"]
+    assert s["model"]["alpha"]["mean"] > 97.0 and s["model"]["beta"]["mean"] > 60.0
+    assert s["perfect"]["alpha"]["mean"] > 99.99 and s["perfect"]["beta"]["mean"] > 95.0
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="6.4.5 targets not reached: the shipped annealed network gives "
+                   "alpha ~98 %, beta ~75 % on this plant (README, Results)")
+def test_645_reaches_the_thesis_targets(control_645):
+    _, s = control_645
+    assert s["model"]["alpha"]["mean"] >= 99.5
+    assert s["model"]["beta"]["mean"] >= 90.0
+
+
+# ----------------------------------------------------------------------------- EMPS (real data)
+@needs_emps
+def test_emps_standard_benchmark(tmp_path):
+    """vir -> qm, train DATA_EMPS, test DATA_EMPS_PULSES scored after the first 20 samples
+    (published best black-box: fit 96.8 %, RMSE about 2.64e-3 m; measured here: 96.5 %, 2.87e-3 m)."""
+    model = fitted("emps-benchmark-narx", tmp_path)
+    test = model.metrics["test"]
+    assert test["samples"] == 24841 - 20
+    assert test["fit"] > 96.0 and test["rmse"] < 3.2e-3
+    assert test["fit"] == pytest.approx(100 * (1 - np.sqrt(test["nmse"] / 100)), rel=1e-9)
+
+
+@needs_emps
+def test_emps_cross_prediction_position_to_force(tmp_path):
+    """qm -> vir with a free-running network: the held-out end of DATA_EMPS is predicted closely
+    (measured fit 97.2 %); on DATA_EMPS_PULSES the force pulses are not predictable from the
+    position before they have moved the axis (measured fit 7.6 %)."""
+    model = fitted("emps-cross-esn", tmp_path)
+    assert model.metrics["validation"]["fit"] > 95.0
+    assert model.metrics["test"]["fit"] is not None and model.metrics["test"]["samples"] == 24841 - 20
