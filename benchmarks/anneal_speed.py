@@ -1,10 +1,12 @@
 """Seconds for 400 simulated-annealing steps with a 60-element network on 10000 samples.
 
 The same annealing loop (``dynmodel.anneal``, same moves, same random stream) runs twice:
-with dynmodel's evaluator (compiled network kernel writing into reused buffers, BLAS Gram
+with dynmodel's evaluator (compiled network kernel writing into reused buffers, centred Gram
 matrix, small eigen-solve) and with the objective written in plain numpy (a Python loop over
-samples with ``np.tanh(C @ x + ...)``, then ``np.linalg.lstsq``). Both reach the same best
-validation NMSE; the benchmark prints both times and the ratio. Prints figures; asserts nothing.
+samples with ``np.tanh(C @ x + ...)``, then ``np.linalg.lstsq``). The states agree to rounding;
+the two least-squares solvers differ slightly on these nearly collinear states (both objectives
+are printed for the starting network), so the two annealing paths part after a few accepted
+moves and their best validation NMSE differs by chance. Prints figures; asserts nothing.
 
     python benchmarks/anneal_speed.py [--steps 400] [--size 60] [--n 10000]
 """
@@ -73,7 +75,7 @@ def main() -> None:
         t0 = time.perf_counter()
         score = evaluator.score(state)
         result = anneal(state, score, evaluator.score, make_moves(p), schedule, rng)
-        results[label] = (time.perf_counter() - t0, 100 * result.best_score)
+        results[label] = (time.perf_counter() - t0, 100 * result.best_score, 100 * score)
     # independent restarts in threads (the compiled kernels release the GIL)
     def search(k, rng, halt):
         ev = Evaluator(td, p, fam.training_drives(td))
@@ -84,10 +86,10 @@ def main() -> None:
     t0 = time.perf_counter()
     run_restarts(search, workers, workers, family_rng(1))
     t_par = time.perf_counter() - t0
-    (t_fast, v_fast), (t_slow, v_slow) = results["dynmodel"], results["plain numpy"]
+    (t_fast, v_fast, s_fast), (t_slow, v_slow, s_slow) = results["dynmodel"], results["plain numpy"]
     print(f"{args.steps} annealing steps, {args.size} elements, {args.n} samples (8000 train / 2000 validation):")
-    print(f"  dynmodel      {t_fast:7.2f} s   best validation NMSE {v_fast:.5g} %")
-    print(f"  plain numpy   {t_slow:7.2f} s   best validation NMSE {v_slow:.5g} %")
+    print(f"  dynmodel      {t_fast:7.2f} s   start {s_fast:.5g} %  best validation NMSE {v_fast:.5g} %")
+    print(f"  plain numpy   {t_slow:7.2f} s   start {s_slow:.5g} %  best validation NMSE {v_slow:.5g} %")
     print(f"  speed-up      {t_slow / t_fast:7.1f}x")
     print(f"  {workers} restarts in {workers} threads: {t_par:.2f} s ({t_par / workers:.2f} s per run)")
 

@@ -141,11 +141,12 @@ def test_a_validation_split_is_required():
 
 @pytest.mark.slow
 def test_thesis_4_4_2_feed_forward_beats_parallel():
-    """Both strategies over 8 runs on the rossler-cross task; see the README for the figures."""
+    """Both strategies over 5 runs on the rossler-cross task (README, 20 runs: parallel 16.1 %,
+    feed-forward about 10 %; the thesis's 1.9 % / 0.9 % are not reached)."""
     results = {}
     for strategy in ("parallel", "feed-forward"):
         values = []
-        for seed in range(8):
+        for seed in range(5):
             spec = load_spec(ROOT / f"specs/thesis-4.4.2-{strategy}.yaml")
             spec.seed = seed
             values.append(engine.fit(spec).metrics["test"]["nmse"])
@@ -153,3 +154,4 @@ def test_thesis_4_4_2_feed_forward_beats_parallel():
         print(f"\n{strategy}: mean {np.mean(values):.3f} std {np.std(values):.3f}")
     assert results["feed-forward"].mean() < results["parallel"].mean()
     assert np.median(results["feed-forward"]) < np.median(results["parallel"])
+    assert results["parallel"].mean() < 18.0 and results["feed-forward"].mean() < 12.0

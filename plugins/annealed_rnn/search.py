@@ -145,6 +145,9 @@ def grow(s: NetState, k: int, p: AnnealedRnnParams, rng: np.random.Generator) ->
 
 # ------------------------------------------------------------------ evaluation
 
+GRAM_CUTOFF = 1e-14  # eigenvalues of the centred Gram matrix kept, relative to the largest
+
+
 class Evaluator:
     """Validation NMSE of a network whose readout is least squares on the training rows."""
 
@@ -189,13 +192,25 @@ class Evaluator:
                                      patience=self.p.readout.patience)
                 W[order[path.order[:path.best]], q] = path.coef_path[path.best - 1]
             return W
-        G = sum(F[s][a:b].T @ F[s][a:b] for s, a, b in self.data.segments["train"])
-        c = sum(F[s][a:b].T @ self.data.series[s].y[a:b] for s, a, b in self.data.segments["train"])
+        # Normal equations of the centred features: centring removes the large common-mode
+        # eigenvalue of the Gram matrix, so far more of its spectrum stays above the rounding level
+        # (uncentred, a 60-element leaky network kept 17 of 61 directions, centred 32).
+        segs = self.data.segments["train"]
+        n = sum(b - a for _, a, b in segs)
+        mean = sum(F[s][a:b, :-1].sum(axis=0) for s, a, b in segs) / n
+        y_mean = sum(self.data.series[s].y[a:b].sum(axis=0) for s, a, b in segs) / n
+        G = np.zeros((mean.size, mean.size))
+        c = np.zeros((mean.size, y_mean.size))
+        for s, a, b in segs:
+            Xc = F[s][a:b, :-1] - mean
+            G += Xc.T @ Xc
+            c += Xc.T @ (self.data.series[s].y[a:b] - y_mean)
         if not np.all(np.isfinite(G)):
             return None
         lam, V = np.linalg.eigh(G)
-        keep = lam > 1e-12 * max(lam[-1], 1e-300)
-        return V[:, keep] @ ((V[:, keep].T @ c) / lam[keep, None])
+        keep = lam > GRAM_CUTOFF * max(lam[-1], 1e-300)
+        w = V[:, keep] @ ((V[:, keep].T @ c) / lam[keep, None])
+        return np.vstack([w, y_mean - mean @ w])
 
     def score(self, state: NetState) -> float:
         """Mean over outputs of the validation NMSE (a fraction) of the free run."""
