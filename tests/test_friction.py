@@ -378,7 +378,12 @@ def test_cli_generate_plot_shows_the_hysteresis(cli, tmp_path):
     assert r.exit_code == 0, r.stderr
     data = np.loadtxt(tmp_path / "g.csv", delimiter=",", skiprows=1)
     assert (tmp_path / "g.csv").read_text().splitlines()[0] == "t,position,force"
-    assert 1.0 < np.std(data[:, 1]) < 20.0  # micrometres
+    # the unit changes the recorded position column only: same run in metres, same forces
+    assert cli("generate", "gms", "--n", 3000, "--out", tmp_path / "m.csv").exit_code == 0
+    metres = np.loadtxt(tmp_path / "m.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(data[:, 1], 1e6 * metres[:, 1], rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(data[:, 2], metres[:, 2])
+    assert np.std(metres[:, 1]) == pytest.approx(5e-6, rel=0.05)  # the default drive: std 5 um
     assert (tmp_path / "g.png").stat().st_size > 20000
 
 
