@@ -48,7 +48,6 @@ def main() -> None:
     ap.add_argument("--fos-nets", type=int, default=5)
     args = ap.parse_args()
     t0 = time.perf_counter()
-    from dynmodel_plugins.esn.params import EsnParams, Scale  # noqa: F401  (params classes for overrides)
 
     print("thesis 5.3.4, narx-system, internal mode, test NMSE % (train 8000 / validation 2000 / test 10000):")
     annealed = runs("thesis-5.3.4-annealed.yaml", range(args.runs))

@@ -18,10 +18,8 @@ Fit seconds: ``dynmodel.fit`` of an internal-mode spec (states + readout), and r
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
-import scipy.sparse as sp
 
 from dynmodel import engine, kernels
 from dynmodel.spec import validate_spec
@@ -29,19 +27,12 @@ from dynmodel_plugins.esn.network import build_network
 from dynmodel_plugins.esn.params import EsnParams
 from dynmodel_plugins.generators.maps import NarxSystem
 
+from timing import best_of
+
 try:  # optional peer
     from reservoirpy.nodes import Reservoir, Ridge
 except Exception:  # noqa: BLE001
     Reservoir = None
-
-
-def best_of(fn, repeats: int = 3) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def numpy_loop(C, B, c0, U, steps):

@@ -8,7 +8,6 @@ Prints figures; asserts nothing.
 """
 from __future__ import annotations
 
-import time
 
 import numpy as np
 
@@ -17,14 +16,7 @@ from dynmodel_plugins.friction.plant import Plant, PlantParams, TrackingTask
 from dynmodel_plugins.friction.response import friction_force
 from dynmodel_plugins.friction.trajectories import Trajectory, TrajectoryParams
 
-
-def best(fn, repeat: int = 3) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
+from timing import best_of
 
 
 def gms_plain(law: GmsFields, x: np.ndarray, h: float) -> np.ndarray:
@@ -98,9 +90,9 @@ def main() -> None:
     x, _, _ = tr.grid(0.0, h, 240001)
     v = np.zeros(240001)
     friction_force(law, x[:100], v[:100], h, 1)  # compile
-    t_fast = best(lambda: friction_force(law, x, v, h, 1))
+    t_fast = best_of(lambda: friction_force(law, x, v, h, 1))
     n_plain = 20000
-    t_plain = best(lambda: gms_plain(law, x[:n_plain], h), 1)
+    t_plain = best_of(lambda: gms_plain(law, x[:n_plain], h), 1)
     diff = np.max(np.abs(gms_plain(law, x[:n_plain], h) - friction_force(law, x[:n_plain], v[:n_plain], h, 1)))
     print(f"GMS along a trajectory (10 elements): compiled {1e9 * t_fast / (len(x) - 1):.1f} ns/substep, "
           f"plain numpy {1e9 * t_plain / (n_plain - 1):.0f} ns/substep ({t_plain / (n_plain - 1) / (t_fast / (len(x) - 1)):.0f}x); "
@@ -111,18 +103,18 @@ def main() -> None:
     n = 100000
     task = TrackingTask(plant, n, np.random.default_rng(0))
     task.start(100, np.random.default_rng(1))  # compile
-    t_fast = best(lambda: task.start(n, np.random.default_rng(1)))
+    t_fast = best_of(lambda: task.start(n, np.random.default_rng(1)))
     n_plain = 300
     noise = plant.noise(n, np.random.default_rng(1))
-    t_plain = best(lambda: plant_plain(params, task.ref_grid, task.dref_grid, noise, n_plain), 1)
+    t_plain = best_of(lambda: plant_plain(params, task.ref_grid, task.dref_grid, noise, n_plain), 1)
     fast = task.start(n_plain, np.random.default_rng(1)).position
     diff = np.max(np.abs(plant_plain(params, task.ref_grid, task.dref_grid, noise, n_plain) - fast))
     steps = params.substeps
     print(f"plant, RK4 with {steps} substeps per 1 ms sample: compiled {1e6 * t_fast / n:.2f} us/sample "
           f"({1e9 * t_fast / n / steps:.0f} ns/RK4 step), plain numpy {1e6 * t_plain / n_plain:.0f} us/sample "
           f"({t_plain / n_plain / (t_fast / n):.0f}x); largest position difference {diff:.1e} m")
-    t_ref = best(lambda: TrackingTask(plant, n, np.random.default_rng(0)))
-    t_perf = best(lambda: task.perfect_feedforward())
+    t_ref = best_of(lambda: TrackingTask(plant, n, np.random.default_rng(0)))
+    t_perf = best_of(lambda: task.perfect_feedforward())
     print(f"100 s reference (2 x 10 x 1e5 points): {t_ref:.2f} s; perfect feed-forward: {t_perf:.2f} s")
 
 

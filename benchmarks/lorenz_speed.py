@@ -23,6 +23,8 @@ from dynmodel_plugins.lorenz_net.elements import simulate_network
 from dynmodel_plugins.lorenz_net.params import LorenzNetParams
 from dynmodel_plugins.lorenz_net.search import Evaluator, initial_state, make_moves
 
+from timing import best_of
+
 
 def numpy_parallel(params: np.ndarray, B: np.ndarray, U: np.ndarray, dt: float, substeps: int) -> np.ndarray:
     """States (n, M, 3) of a parallel network (C = 0) by RK4 in plain numpy, drive held per interval."""
@@ -45,15 +47,6 @@ def numpy_parallel(params: np.ndarray, B: np.ndarray, U: np.ndarray, dt: float, 
             x = x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         out[t] = x
     return out
-
-
-def best_of(f, repeats: int = 3) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def main() -> None:

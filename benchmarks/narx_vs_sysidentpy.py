@@ -32,6 +32,8 @@ from dynmodel.data import Preprocessor, load_dataset, training_data
 from dynmodel.spec import NoiseSpec, load_spec
 from dynmodel_plugins.narx import Narx
 
+from timing import best_of
+
 try:  # optional peer
     from sysidentpy.basis_function import Polynomial
     from sysidentpy.model_structure_selection import FROLS
@@ -95,15 +97,6 @@ def numpy_free_run(fam: Narx, u: np.ndarray, y0: np.ndarray) -> np.ndarray:
         x = np.where(src == 0, u[t - lag, 0], y[t - lag])
         y[t] = w @ np.prod(x ** E, axis=1)
     return y
-
-
-def best_of(fn, repeats: int = 3) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def speed(n: int) -> None:

@@ -21,7 +21,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from . import __version__
-from .errors import EXIT_CHECK_FAILED, EXIT_INTERNAL, DynmodelError, FreeRunDiverged
+from .errors import EXIT_INTERNAL, DynmodelError, FreeRunDiverged
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Black-box models of driven dynamical systems from measured input/output data.")

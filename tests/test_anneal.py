@@ -9,9 +9,8 @@ import pytest
 import dynmodel
 from dynmodel import engine
 from dynmodel.anneal import Schedule, anneal, relative_improvement
-from dynmodel.data import Preprocessor, load_dataset, training_data
 from dynmodel.spec import load_spec
-from dynmodel_plugins.annealed_rnn import AnnealedRnn, AnnealedRnnParams
+from dynmodel_plugins.annealed_rnn import AnnealedRnnParams
 from dynmodel_plugins.annealed_rnn.search import NetState, grow, make_moves
 
 from conftest import ROOT, make_spec, narx

@@ -181,8 +181,8 @@ def test_scaling_uses_training_statistics_and_hides_test_outputs():
 def test_several_recordings_keep_their_own_starts(tmp_path):
     u1, y1 = narx(3000, 1)
     u2, y2 = narx(2000, 2)
-    a = write_csv(tmp_path / "a.csv", {"u": u1, "y": y1})
-    b = write_csv(tmp_path / "b.csv", {"u": u2, "y": y2})
+    write_csv(tmp_path / "a.csv", {"u": u1, "y": y1})
+    write_csv(tmp_path / "b.csv", {"u": u2, "y": y2})
     raw = {"data": {"path": ["a.csv", "b.csv"], "input": ["u"], "output": ["y"], "split": {"train": 0.5, "validation": 0.5},
                     "transient": 100}, "model": {"family": "esn"}}
     ds = load_dataset(make_spec(raw, tmp_path))

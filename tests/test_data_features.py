@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 import dynmodel
-from dynmodel import engine
 from dynmodel.data import load_dataset
 from dynmodel.data.derived import channel_name, reversals, time_matrix
 from dynmodel.errors import DataError, SpecError

@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 import dynmodel
-from dynmodel import engine, store
-from dynmodel.data import load_dataset
+from dynmodel import engine
 from dynmodel.spec import load_spec
 from dynmodel_plugins.esn.network import largest_singular_value, spectral_radius
 

@@ -254,7 +254,7 @@ def load_dataset(spec) -> Dataset:
     for s in separate:
         if split.get(s) is not None:
             raise SpecError(f"the {s} split is given twice: in data.split and as a separate data.{s} source",
-                            f"{spec.source}: data.split.{s}", f"remove one of them")
+                            f"{spec.source}: data.split.{s}", "remove one of them")
     if split.get("train") is None:
         raise SpecError("data.split has no train part", f"{spec.source}: data.split", "add train: 0.7 (or a sample range)")
 

@@ -102,7 +102,7 @@ def _gain_lines(gain: dict[str, Any] | None) -> list[str]:
         return ["No extension was measured."]
     before, after = gain.get("test_nmse_before"), gain.get("test_nmse_after")
     red = gain.get("relative_reduction")
-    lines = [f"| | baseline | extended |", "|---|---|---|",
+    lines = ["| | baseline | extended |", "|---|---|---|",
              f"| test NMSE % | {'diverged' if gain.get('baseline_diverged_on_test') else _fmt(before)} | "
              f"{'diverged' if gain.get('extended_diverged_on_test') else _fmt(after)} |",
              f"| test MAX | {_fmt(gain.get('test_max_before'))} | {_fmt(gain.get('test_max_after'))} |", ""]

@@ -12,7 +12,7 @@ training range); :meth:`DrivenSystem.drive` maps a whole input sequence to the p
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
 import numpy as np

@@ -15,13 +15,12 @@ import threading
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 
 from dynmodel.anneal import Schedule, anneal, run_restarts
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Progress, no_progress
 from dynmodel_plugins.esn.model import EchoStateNetwork
-from dynmodel_plugins.esn.network import Network, build_network
+from dynmodel_plugins.esn.network import build_network
 from dynmodel_plugins.esn.params import EsnParams, Scale
 
 from .params import AnnealedRnnParams
@@ -102,10 +101,7 @@ class AnnealedRnn(EchoStateNetwork):
         best, score, stages, _ = runs[k_best]
         self.search_ = {"restarts": [{"validation_nmse": 100 * r[1], "stages": r[2]} for r in runs], "best_run": k_best,
                         "interrupted": any(r[3] for r in runs)}
-        g = 1.0 - np.abs(best.a) if p.relaxation_gain else np.ones_like(best.a)
-        C = sp.csr_matrix(best.C)
-        C.sort_indices()
-        self.network_ = Network(C, best.B_in, best.B_back, best.c0, best.a, g)
+        self.network_ = best.network(p.relaxation_gain)
         return self._fit_readout(data, cost, progress)
 
     def to_arrays(self):

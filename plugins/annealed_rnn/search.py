@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from dynmodel import kernels
 from dynmodel.data.training import TrainingData
 from dynmodel.regression import fos_select_qr, qr_reduce
+from dynmodel_plugins.esn.network import Network
 
 from .params import AnnealedRnnParams
 
@@ -37,10 +38,14 @@ class NetState:
     def gain(self, relaxation_gain: bool) -> np.ndarray:
         return 1.0 - np.abs(self.a) if relaxation_gain else np.ones_like(self.a)
 
+    def network(self, relaxation_gain: bool) -> Network:
+        """The sparse network this state describes (the form the kernels and the fitted model use)."""
+        C = sp.csr_matrix(self.C)
+        C.sort_indices()
+        return Network(C, self.B_in, self.B_back, self.c0, self.a, self.gain(relaxation_gain))
+
     def kernel_args(self, relaxation_gain: bool) -> tuple:
-        Cs = sp.csr_matrix(self.C)
-        return (Cs.indptr.astype(np.int64), Cs.indices.astype(np.int64), Cs.data,
-                np.ascontiguousarray(np.hstack([self.B_in, self.B_back])), self.c0, self.a, self.gain(relaxation_gain))
+        return self.network(relaxation_gain).kernel_args()
 
 
 def rescale(C: np.ndarray, bound: float) -> np.ndarray:

@@ -20,7 +20,7 @@ from dynmodel.family import Family, Progress, Simulation, no_progress
 
 from .elements import simulate_network
 from .params import LorenzNetParams
-from .search import Evaluator, LorenzState, initial_state, make_moves
+from .search import Evaluator, initial_state, make_moves
 
 
 class LorenzNet(Family):
