@@ -73,25 +73,20 @@ def unknown_name_message(kind: str, name: str, known: list[str]) -> tuple[str, s
     return what, fix
 
 
-def family(name: str) -> Any:
-    table = families()
+def _lookup(table: dict[str, Any], kind: str, name: str, where: str) -> Any:
     if name not in table:
-        what, fix = unknown_name_message("family", name, sorted(table))
-        raise DynmodelError(what, "model.family", fix)
+        what, fix = unknown_name_message(kind, name, sorted(table))
+        raise DynmodelError(what, where, fix)
     return table[name]
+
+
+def family(name: str) -> Any:
+    return _lookup(families(), "family", name, "model.family")
 
 
 def source(name: str) -> Any:
-    table = sources()
-    if name not in table:
-        what, fix = unknown_name_message("generator", name, sorted(table))
-        raise DynmodelError(what, "data.generator", fix)
-    return table[name]
+    return _lookup(sources(), "generator", name, "data.generator")
 
 
 def system(name: str) -> Any:
-    table = systems()
-    if name not in table:
-        what, fix = unknown_name_message("test system", name, sorted(table))
-        raise DynmodelError(what, "--system", fix)
-    return table[name]
+    return _lookup(systems(), "test system", name, "--system")

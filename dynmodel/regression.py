@@ -201,17 +201,9 @@ def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ..
         valid = available & (Dmm > tol * np.maximum(diag, 1e-300))
         if not valid.any():
             break
-        if m < len(forced):
-            i = forced[m]
-            if not valid[i]:
-                break
-        else:
-            score = np.where(valid, Ct * Ct / np.where(valid, Dmm, 1.0), -np.inf)
-            i = int(np.argmax(score))
-            if ties > 0.0:  # the first of the (nearly) best candidates in pool order
-                i = int(np.flatnonzero(score >= score[i] * (1.0 - ties))[0])
-            if threshold is not None and score[i] < threshold * yy:
-                break
+        i = _next_term(m, forced, valid, lambda: Ct * Ct / np.where(valid, Dmm, 1.0), threshold, yy, ties)
+        if i is None:
+            break
         alpha[m, :m] = Dt[:m, i] / D[:m]
         D[m], Cc[m] = Dmm[i], Ct[i]
         Q[m] = Cc[m] ** 2 / D[m]
@@ -256,16 +248,10 @@ def fos_select_qr(R: np.ndarray, z: np.ndarray, yy: float, *, forced: tuple[int,
         valid = available & (d > tol * np.maximum(norm0, 1e-300)) & (d > 0)
         if not valid.any():
             break
-        if m < len(forced):
-            i = forced[m]
-            if not valid[i]:
-                break
-        else:
-            proj = V.T @ r
-            score = np.where(valid, proj * proj / np.where(valid, d, 1.0), -np.inf)
-            i = int(np.argmax(score))
-            if threshold is not None and score[i] < threshold * yy:
-                break
+        proj = lambda: V.T @ r  # noqa: E731
+        i = _next_term(m, forced, valid, lambda: proj() ** 2 / np.where(valid, d, 1.0), threshold, yy)
+        if i is None:
+            break
         q = V[:, i] / np.sqrt(d[i])
         c = q @ V  # MGS: remove the new direction from every candidate
         T[m] = c
@@ -281,6 +267,23 @@ def fos_select_qr(R: np.ndarray, z: np.ndarray, yy: float, *, forced: tuple[int,
         if stopper.add(order, coef, m < len(forced)):
             break
     return stopper.path(order, coef_path, Q)
+
+
+def _next_term(m: int, forced: tuple[int, ...], valid: np.ndarray, reduction, threshold: float | None,
+               yy: float, ties: float = 0.0) -> int | None:
+    """Index of the m-th FOS term, or None to stop: the forced terms first, then the candidate with
+    the largest error reduction Q = C^2 / D (appendix A.2.2), the first of the nearly best ones in pool
+    order when ``ties`` > 0; stop when nothing is left or the best reduction falls below
+    ``threshold`` times y'y. ``reduction()`` gives Q for every candidate."""
+    if m < len(forced):
+        return forced[m] if valid[forced[m]] else None
+    score = np.where(valid, reduction(), -np.inf)
+    i = int(np.argmax(score))
+    if ties > 0.0:
+        i = int(np.flatnonzero(score >= score[i] * (1.0 - ties))[0])
+    if threshold is not None and score[i] < threshold * yy:
+        return None
+    return i
 
 
 def _solve_unit_upper(U: np.ndarray, b: np.ndarray) -> np.ndarray:
