@@ -146,6 +146,8 @@ def fit(spec: Path = typer.Argument(..., help="YAML spec"),
     if s.data.noise is not None and s.data.noise.std > 0:
         out.print(f"note: noise of std {s.data.noise.std:g} x the output std was added to the "
                   f"{', '.join(s.data.noise.splits)} outputs; those splits are scored against the noisy outputs")
+    for note in ds.excursion_notes():
+        out.print(f"note: {note}", markup=False, soft_wrap=True)
     out.print(f"model written to {Path(target).resolve()}")
     if json_path:
         _write_json(json_path, {"metrics": model.metrics, "model": str(Path(target).resolve())})
@@ -456,6 +458,8 @@ def diagnose_cmd(
         index = write_report(result, folder)
         extended = write_extended(result, folder)
     _print_diagnosis(result)
+    for note in result.notes:
+        out.print(f"note: {note}", markup=False, soft_wrap=True)
     out.print(f"report written to {index}")
     if extended is not None:
         out.print(f"extended spec written to {extended} (run it with: dynmodel fit {extended})")

@@ -96,6 +96,19 @@ def test_rmse_and_fit_metrics(cli, tmp_path):
     assert test["fit"] == pytest.approx(100 * (1 - np.sqrt(test["nmse"] / 100)), rel=1e-9)
 
 
+def test_fit_notes_a_test_input_beyond_the_training_range(cli, tmp_path, narx_csvs):
+    train, test = narx_csvs
+    spec = {"data": {"path": str(train), "input": ["u"], "output": ["y"], "split": {"train": 0.8, "validation": 0.2},
+                     "test": {"path": str(test)}}, "model": {"family": "narx"}, "output": str(tmp_path / "m.h5")}
+    r = cli("fit", write_yaml(tmp_path / "s.yaml", spec), "-q")
+    assert r.exit_code == 0 and "extrapolates" not in r.stdout  # the same uniform input on both files
+    u, y = np.loadtxt(test, delimiter=",", skiprows=1, unpack=True)
+    u[1500] = 2 * u.max()  # one sample twice as far out as anything in training
+    write_csv(test, {"u": u, "y": y})
+    r = cli("fit", tmp_path / "s.yaml", "-q")
+    assert "note: the test input 'u' leaves the training range by" in r.stdout and "sample 1500 of 'test:test.csv'" in r.stdout
+
+
 def test_generate_reports_invalid_parameters_on_one_line(cli, tmp_path):
     r = cli("generate", "linear-system", "-p", "a0=2", "--out", tmp_path / "g.csv")
     line = _one_line_error(r)

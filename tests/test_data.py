@@ -203,3 +203,19 @@ def test_training_data_converts_physical_output_values_to_model_space(tmp_path):
     values = np.array([40.0, 60.0])
     np.testing.assert_allclose(td.to_model_outputs(values[:, None])[:, 0], pre.outputs(values[:, None])[:, 0])
     np.testing.assert_allclose(pre.physical_outputs(td.to_model_outputs(values[:, None])), values[:, None])
+
+
+def test_inputs_beyond_the_training_range_are_named_with_split_sample_and_excess():
+    from dynmodel.data.dataset import Dataset, Recording
+
+    u = np.sin(np.linspace(0, 20, 1000))[:, None]
+    u[900] = 1.5  # the test split goes half the training width (2) beyond its top (1)
+    rec = Recording("r.csv", u, np.zeros((1000, 1)))
+    ds = Dataset([rec], {"train": [(0, 0, 600)], "validation": [(0, 600, 800)], "test": [(0, 800, 1000)]}, 0,
+                 ["u"], ["y"], 1.0)
+    found = ds.input_excursions()
+    assert len(found) == 1 and found[0]["split"] == "test" and found[0]["sample"] == 900
+    assert found[0]["excess"] == pytest.approx(0.25, abs=0.01)  # 0.5 over a training width of about 2
+    assert "leaves the training range by 25 %" in ds.excursion_notes()[0]
+    u[900] = 0.5
+    assert ds.input_excursions() == []

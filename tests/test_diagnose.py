@@ -201,3 +201,20 @@ def test_detectors_are_plugins(cli, monkeypatch, tmp_path):
     fitter = Fitter("<test>", tmp_path)
     findings, _ = detect(fitter.fit(case.spec(tmp_path)), Settings(), fitter)
     assert any(f.cause == "always" and f.evidence["n"] > 1000 for f in findings)
+
+
+def test_default_narx_that_loses_track_on_gms_friction_is_repaired_by_free_run_selection(tmp_path):
+    """A new user's first try: GMS friction (position -> force) with the default NARX and cost mse_inf.
+    One-step FOS keeps only force[t-1], force[t-2] (one-step NMSE about 1e-3 %), whose free run ignores
+    the input (NMSE about 100 %). The diagnosis names free-run-instability and the structure selected on
+    the free-running error brings the test NMSE below 20 %."""
+    spec = {"name": "gms", "data": {"generator": "gms", "n": 12000, "seed": 0,
+                                    "split": {"train": 0.6, "validation": 0.2, "test": 0.2}},
+            "model": {"family": "narx"}, "cost": "mse_inf", "seed": 0}
+    result = diagnose(spec, "<test>", tmp_path, Settings())
+    assert result.baseline.nmse("test") > 90.0
+    assert result.verdict == "free-run-instability"
+    chosen = result.rounds[0].chosen
+    assert chosen.extension.patch["model"]["params"]["selection"] == "free_run" and result.rounds[0].accepted
+    assert result.final.nmse("test") < 20.0
+    assert any("extrapolates" in n for n in result.notes)  # the test position leaves the training range

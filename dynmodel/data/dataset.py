@@ -83,6 +83,39 @@ class Dataset:
             return np.empty((0, len(self.input_names))), np.empty(0, dtype=np.int64)
         return np.concatenate(pieces), np.array([len(p) for p in pieces], dtype=np.int64)
 
+    def input_excursions(self, margin: float = 0.05) -> list[dict]:
+        """Inputs of the validation and test splits that go beyond the range the training split
+        covers by more than ``margin`` of that range: there the model extrapolates (a readout or a
+        polynomial fitted inside the range can do anything outside it). One entry per split and
+        input: ``{split, input, excess (fraction of the training range), recording, sample}``."""
+        train, _ = self.concat_inputs("train")
+        if train.shape[0] == 0:
+            return []
+        lo, hi = train.min(axis=0), train.max(axis=0)
+        width = np.maximum(hi - lo, np.finfo(float).tiny)
+        found = []
+        for split in ("validation", "test"):
+            for j, name in enumerate(self.input_names):
+                worst = (0.0, -1, -1)
+                for rec, start, stop in self.ranges.get(split, []):
+                    u = self.recordings[rec].u[start:stop, j]
+                    if u.size == 0:
+                        continue
+                    excess = np.maximum(u - hi[j], lo[j] - u) / width[j]
+                    k = int(np.argmax(excess))
+                    if excess[k] > worst[0]:
+                        worst = (float(excess[k]), rec, start + k)
+                if worst[0] > margin:
+                    found.append({"split": split, "input": name, "excess": worst[0],
+                                  "recording": self.recordings[worst[1]].name, "sample": worst[2]})
+        return found
+
+    def excursion_notes(self) -> list[str]:
+        """:meth:`input_excursions` as sentences for a user."""
+        return [f"the {e['split']} input '{e['input']}' leaves the training range by {100 * e['excess']:.0f} % of its "
+                f"width (sample {e['sample']} of '{e['recording']}'): the model extrapolates there, and the "
+                f"{e['split']} scores include it" for e in self.input_excursions()]
+
     def concat_outputs(self, split: str) -> np.ndarray:
         """Outputs of ``split`` concatenated (the pieces of :meth:`concat_inputs`)."""
         pieces = [self.recordings[rec].y[start:stop] for rec, start, stop in self.ranges.get(split, [])]

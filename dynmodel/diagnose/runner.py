@@ -200,6 +200,7 @@ def diagnose(raw: dict[str, Any], source: str, base_dir: Path, settings: Setting
     notes: list[str] = []
     with warnings.catch_warnings(record=True) as caught:
         current = fitter.fit(raw, label="baseline")
+        notes += current.ds.excursion_notes()
         rounds: list[Round] = []
         for index in range(1, max(1, settings.rounds) + 1):
             t0 = time.perf_counter()

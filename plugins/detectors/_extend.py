@@ -95,14 +95,18 @@ def merge_patches(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
 
 
 def stabilizers(ctx: Context) -> list[Extension]:
-    """Free-run stabilization (thesis 6.3.2): free-running estimation with error propagation, output
-    bounds (eq. 6.25), ridge; for feedback networks the internal mode."""
+    """Free-run stabilization (thesis 6.3.2): free-running estimation with error propagation, terms selected
+    on the free-running error, output bounds (eq. 6.25), ridge; for feedback networks the internal mode."""
     out: list[Extension] = []
     cost = ctx.spec.cost
     if ctx.family == NARX:
         if cost != "mse_inf":
             out.append(Extension("estimate on the free-running error (cost: mse_inf; error propagation when the "
                                  "least-squares model diverges, thesis 6.3.2)", {"cost": "mse_inf"}))
+        if ctx.params.get("selection", "one_step") == "one_step" and ctx.params.get("terms") is None:
+            out.append(Extension("select the terms on the free-running error (selection: free_run, cost: mse_inf): a "
+                                 "structure chosen one step ahead need not work in free run (thesis 3.1.4)",
+                                 merge_patches({"cost": "mse_inf"}, params_patch(selection="free_run"))))
         if ctx.params.get("bounds") is None:
             out.append(Extension("clip the free-running output to the training range widened by 10 % (eq. 6.25)",
                                  params_patch(bounds=0.1)))
