@@ -248,8 +248,7 @@ def fos_select_qr(R: np.ndarray, z: np.ndarray, yy: float, *, forced: tuple[int,
         valid = available & (d > tol * np.maximum(norm0, 1e-300)) & (d > 0)
         if not valid.any():
             break
-        proj = lambda: V.T @ r  # noqa: E731
-        i = _next_term(m, forced, valid, lambda: proj() ** 2 / np.where(valid, d, 1.0), threshold, yy)
+        i = _next_term(m, forced, valid, lambda: (V.T @ r) ** 2 / np.where(valid, d, 1.0), threshold, yy)
         if i is None:
             break
         q = V[:, i] / np.sqrt(d[i])

@@ -12,10 +12,11 @@ the anti-cycle of figure 5.4): they too give different outputs.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
+from ..family import Progress
 from ..kernels import group_spread, row_distances
 from . import lyapunov
 from .replicas import max_pairwise
@@ -29,8 +30,6 @@ LYAP_STEPS = 600
 SETTLE_CHECK = 100
 #: a level counts as settled early when its replicas agree and moved less than this times the tolerance
 SETTLE_MOVE = 1e-3
-
-Progress = Callable[[str, "float | None", str], None]
 
 
 @dataclass

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
+from ..family import Progress
 from . import attractors, lyapunov, replicas, tune_in
 from .signals import TestSignal, battery, constant_levels
 from .system import DrivenSystem, Evidence, Sine
 from .verdict import Verdict, decide
 
-Progress = Callable[[str, "float | None", str], None]
 #: relative size of the random nudge of the constant scan's initial states
 NUDGE = 1e-8
 

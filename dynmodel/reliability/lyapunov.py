@@ -10,17 +10,16 @@ reliable for that input. Exponents are per step; for flows divided by the sampli
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
+from ..family import Progress
 from .system import DrivenSystem
 
 #: |lambda| below this (per step) is "about zero"
 LYAP_TOL = 1e-3
 BLOCKS = 10
-
-Progress = Callable[[str, "float | None", str], None]
 
 
 @dataclass

@@ -9,10 +9,11 @@ below the tolerance (the washout a user needs before trusting the output).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
+from ..family import Progress
 from ..kernels import group_spread
 from .signals import TestSignal
 from .system import DrivenSystem
@@ -27,8 +28,6 @@ TREND = 5.0
 COLLAPSE_CHECK = 50
 #: replicas closer than this fraction of the state scale are equal up to rounding
 COLLAPSE = 1e-13
-
-Progress = Callable[[str, "float | None", str], None]
 
 
 @dataclass

@@ -15,17 +15,16 @@ without measured outputs fall back to the closed loop's own run from the rest st
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
+from ..family import Progress
 from .system import DrivenSystem
 
 GRID = (0, 1, 2, 3, 5, 7, 10, 15, 20, 30, 50, 70, 100, 150, 200, 300, 500, 700, 1000, 1500, 2000)
 #: outputs agree when they differ by less than this fraction of the training output range
 OUTPUT_TOL = 1e-3
-
-Progress = Callable[[str, "float | None", str], None]
 
 
 @dataclass
