@@ -8,6 +8,7 @@ readout vs least squares under noise), with dynmodel.
 Test NMSE (%) of the free run on a separate clean realization. Median and interquartile range
 (the spread of figures 5.13 / 5.14). Prints figures; asserts nothing.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,7 +25,9 @@ SPECS = Path(__file__).resolve().parents[1] / "specs"
 
 def summary(v: np.ndarray) -> str:
     q1, med, q3 = np.percentile(v, [25, 50, 75])
-    return f"median {med:8.4g}  IQR [{q1:.4g}, {q3:.4g}]  mean {np.mean(v):8.4g}  min {np.min(v):.4g}  max {np.max(v):.4g}"
+    return (
+        f"median {med:8.4g}  IQR [{q1:.4g}, {q3:.4g}]  mean {np.mean(v):8.4g}  min {np.min(v):.4g}  max {np.max(v):.4g}"
+    )
 
 
 def runs(spec_file: str, seeds, params: dict | None = None, data: dict | None = None) -> np.ndarray:
@@ -54,15 +57,18 @@ def main() -> None:
     print(f"  annealed-rnn, 60 elements, 400 steps ({args.runs} runs)     {summary(annealed)}")
     random400 = runs("thesis-5.3.4-random-esn.yaml", range(2 * args.runs))
     print(f"  esn, random 400 elements ({2 * args.runs} networks)            {summary(random400)}")
-    leaky400 = runs("thesis-5.3.4-random-esn.yaml", range(2 * args.runs),
-                    params={"relaxation": (0.0, 0.9), "relaxation_gain": True})
+    leaky400 = runs(
+        "thesis-5.3.4-random-esn.yaml", range(2 * args.runs), params={"relaxation": (0.0, 0.9), "relaxation_gain": True}
+    )
     print(f"  esn, random 400 elements with eq. 6.21 elements           {summary(leaky400)}")
     no_search = runs("thesis-5.3.4-annealed.yaml", range(args.runs), params={"steps": 0})
     print(f"  annealed-rnn with 0 steps (its random start, 60 elements) {summary(no_search)}")
 
     if args.fos:
-        print("\nthesis 5.3.3, rossler-lorenz, 200 random elements, mean test NMSE % over "
-              f"{args.fos_nets} networks (both readouts fitted on the same 80 % of N):")
+        print(
+            "\nthesis 5.3.3, rossler-lorenz, 200 random elements, mean test NMSE % over "
+            f"{args.fos_nets} networks (both readouts fitted on the same 80 % of N):"
+        )
         print("  noise    N     lstsq       fos")
         from dynmodel_plugins.esn.params import Readout
 
@@ -70,9 +76,12 @@ def main() -> None:
             for n in (1000, 2000, 4000, 10000):
                 row = {}
                 for solver in ("lstsq", "fos"):
-                    row[solver] = runs("thesis-5.3.3-fos.yaml", range(args.fos_nets),
-                                       params={"readout": Readout(solver=solver, direct=False)},
-                                       data={"n": n, "noise": NoiseSpec(std=level) if level else None}).mean()
+                    row[solver] = runs(
+                        "thesis-5.3.3-fos.yaml",
+                        range(args.fos_nets),
+                        params={"readout": Readout(solver=solver, direct=False)},
+                        data={"n": n, "noise": NoiseSpec(std=level) if level else None},
+                    ).mean()
                 print(f"  {level:4.1f} {n:6d} {row['lstsq']:9.4g} {row['fos']:9.4g}")
     print(f"\n({time.perf_counter() - t0:.0f} s)")
 

@@ -10,6 +10,7 @@ moves and their best validation NMSE differs by chance. Prints figures; asserts 
 
     python benchmarks/anneal_speed.py [--steps 400] [--size 60] [--n 10000]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,9 +58,20 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=60)
     ap.add_argument("--n", type=int, default=10000)
     args = ap.parse_args()
-    spec = validate_spec({"data": {"generator": "narx-system", "n": args.n, "seed": 1, "split": {"train": 0.8, "validation": 0.2},
-                                   "transient": 1000, "transient_at": "recording", "scaling": "none"},
-                          "model": {"family": "annealed-rnn", "params": {"size": args.size, "steps": args.steps}}})
+    spec = validate_spec(
+        {
+            "data": {
+                "generator": "narx-system",
+                "n": args.n,
+                "seed": 1,
+                "split": {"train": 0.8, "validation": 0.2},
+                "transient": 1000,
+                "transient_at": "recording",
+                "scaling": "none",
+            },
+            "model": {"family": "annealed-rnn", "params": {"size": args.size, "steps": args.steps}},
+        }
+    )
     ds = load_dataset(spec)
     td = training_data(ds, Preprocessor.fit(ds, [], "none"))
     fam = AnnealedRnn(**spec.model.params.model_dump())
@@ -68,7 +80,10 @@ def main() -> None:
     schedule = Schedule(p.steps, p.t0, p.t_end)
 
     results = {}
-    for label, evaluator in [("dynmodel", Evaluator(td, p, fam.training_drives(td))), ("plain numpy", NumpyEvaluator(td, p))]:
+    for label, evaluator in [
+        ("dynmodel", Evaluator(td, p, fam.training_drives(td))),
+        ("plain numpy", NumpyEvaluator(td, p)),
+    ]:
         rng = family_rng(0)
         state = fam._initial_state(td, rng)
         evaluator.score(state)  # compile / warm up outside the timing
@@ -76,6 +91,7 @@ def main() -> None:
         score = evaluator.score(state)
         result = anneal(state, score, evaluator.score, make_moves(p), schedule, rng)
         results[label] = (time.perf_counter() - t0, 100 * result.best_score, 100 * score)
+
     # independent restarts in threads (the compiled kernels release the GIL)
     def search(k, rng, halt):
         ev = Evaluator(td, p, fam.training_drives(td))

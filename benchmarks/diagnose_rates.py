@@ -5,6 +5,7 @@ for seeds start .. start + seeds - 1; clean data with adequate models for as man
 
     python benchmarks/diagnose_rates.py --start 100 --seeds 50 --clean 100
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,9 +18,9 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+import hidden_effects as H  # noqa: E402
 import numpy as np  # noqa: E402
 
-import hidden_effects as H  # noqa: E402
 from dynmodel.diagnose import Settings, diagnose  # noqa: E402
 from dynmodel.diagnose.fitting import Fitter  # noqa: E402
 from dynmodel.diagnose.runner import detect  # noqa: E402
@@ -61,14 +62,19 @@ def hidden(start: int, count: int) -> None:
             g = (result.gain or {}).get("relative_reduction")
             if g is not None:
                 gains.append(g)
-        gtxt = (f"test NMSE reduction median {100 * np.median(gains):.1f} %, min {100 * np.min(gains):.1f} %"
-                if gains else "baseline diverges on the test split in every run; the extension stays finite")
+        gtxt = (
+            f"test NMSE reduction median {100 * np.median(gains):.1f} %, min {100 * np.min(gains):.1f} %"
+            if gains
+            else "baseline diverges on the test split in every run; the extension stays finite"
+        )
         print(f"  {cause:22s} named first {named}/{count}; {gtxt} ({time.perf_counter() - t0:.0f} s)")
         errors = [x for x in errors if x is not None]
         if errors:
             values = np.array([v for _, v in errors])
-            print(f"      evidence, {errors[0][0]}: median {np.median(values):.3g}, range [{values.min():.3g}, "
-                  f"{values.max():.3g}]")
+            print(
+                f"      evidence, {errors[0][0]}: median {np.median(values):.3g}, range [{values.min():.3g}, "
+                f"{values.max():.3g}]"
+            )
         for seed, verdict in misses:
             print(f"      seed {seed}: named {verdict}")
 
@@ -89,9 +95,11 @@ def generator_friction(start: int, count: int) -> None:
         if result.rounds[0].chosen is not None:
             key = result.rounds[0].chosen.extension.summary.split(":")[0]
             chosen[key] = chosen.get(key, 0) + 1
-    print(f"  dahl generator         named first {named}/{count}; test NMSE reduction median "
-          f"{100 * np.median(gains):.1f} %, min {100 * np.min(gains):.1f} %; chosen {chosen} "
-          f"({time.perf_counter() - t0:.0f} s)")
+    print(
+        f"  dahl generator         named first {named}/{count}; test NMSE reduction median "
+        f"{100 * np.median(gains):.1f} %, min {100 * np.min(gains):.1f} %; chosen {chosen} "
+        f"({time.perf_counter() - t0:.0f} s)"
+    )
     for seed, verdict in misses:
         print(f"      seed {seed}: named {verdict}")
 

@@ -8,6 +8,7 @@
 Every figure is the test NMSE (%) of the free run on a separate clean 10000-sample realization,
 first 1000 samples not scored. Network seeds are 0 .. nets-1. Prints figures; asserts nothing.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -26,8 +27,10 @@ SPECS = Path(__file__).resolve().parents[1] / "specs"
 def stats(values: np.ndarray) -> str:
     finite = values[np.isfinite(values)]
     diverged = len(values) - len(finite)
-    text = (f"mean {np.mean(values):9.4g}  median {np.median(values):9.4g}  std {np.std(finite):8.3g}  "
-            f"min {np.min(finite):8.3g}  max {np.max(values):8.3g}")
+    text = (
+        f"mean {np.mean(values):9.4g}  median {np.median(values):9.4g}  std {np.std(finite):8.3g}  "
+        f"min {np.min(finite):8.3g}  max {np.max(values):8.3g}"
+    )
     return text + (f"  ({diverged} diverged)" if diverged else "")
 
 
@@ -67,8 +70,12 @@ def peer(seeds) -> None:
         res.reset()
         pred = model.run(ut)
         ridge.append(float(nmse(yt[1000:], pred[1000:])[0]))
-        X = kernels.drive(*net.kernel_args()[:3], np.ascontiguousarray(net.B_in), *net.kernel_args()[4:], u, np.zeros(net.size))
-        Xt = kernels.drive(*net.kernel_args()[:3], np.ascontiguousarray(net.B_in), *net.kernel_args()[4:], ut, np.zeros(net.size))
+        X = kernels.drive(
+            *net.kernel_args()[:3], np.ascontiguousarray(net.B_in), *net.kernel_args()[4:], u, np.zeros(net.size)
+        )
+        Xt = kernels.drive(
+            *net.kernel_args()[:3], np.ascontiguousarray(net.B_in), *net.kernel_args()[4:], ut, np.zeros(net.size)
+        )
         A = np.hstack([X[1000:], np.ones((len(X) - 1000, 1))])
         w, *_ = np.linalg.lstsq(A, y[1000:], rcond=None)
         plain.append(float(nmse(yt[1000:], Xt[1000:] @ w[:-1] + w[-1])[0]))

@@ -15,19 +15,19 @@ Fit seconds: ``dynmodel.fit`` of an internal-mode spec (states + readout), and r
     python benchmarks/esn_speed.py            # M=200/N=10000 and M=1000/N=100000
     python benchmarks/esn_speed.py --quick    # M=200/N=10000 only
 """
+
 from __future__ import annotations
 
 import argparse
 
 import numpy as np
+from timing import best_of
 
 from dynmodel import engine, kernels
 from dynmodel.spec import validate_spec
 from dynmodel_plugins.esn.network import build_network
 from dynmodel_plugins.esn.params import EsnParams
 from dynmodel_plugins.generators.maps import NarxSystem
-
-from timing import best_of
 
 try:  # optional peer
     from reservoirpy.nodes import Reservoir, Ridge
@@ -54,8 +54,21 @@ def case(m: int, n: int) -> None:
     t_drive = best_of(lambda: kernels.drive(*internal_args, u, np.zeros(m))) / n * 1e6
     W = 0.01 * np.random.default_rng(2).standard_normal((1, m))
     D, w0, lo, hi = np.zeros((1, 2)), np.zeros(1), np.full(1, -1e12), np.full(1, 1e12)
-    fr = lambda: kernels.free_run(*args, u, np.zeros((0, 1)), 0, 0.0, W, D, w0, np.zeros(1), lo, hi,  # noqa: E731
-                                  np.zeros(m), False)
+    fr = lambda: kernels.free_run(
+        *args,
+        u,
+        np.zeros((0, 1)),
+        0,
+        0.0,
+        W,
+        D,
+        w0,
+        np.zeros(1),
+        lo,
+        hi,  # noqa: E731
+        np.zeros(m),
+        False,
+    )
     fr()
     t_free = best_of(fr) / n * 1e6
     steps = min(n, 20000)
@@ -66,9 +79,17 @@ def case(m: int, n: int) -> None:
     Xn = numpy_loop(dense, internal_B, net.c0, u, 2000)
     agree = float(np.abs(Xd - Xn).max())
 
-    raw = {"data": {"generator": "narx-system", "n": n, "seed": 1, "split": {"train": 1.0}, "transient": 1000,
-                    "scaling": "none"},
-           "model": {"family": "esn", "params": {"size": m, "readout": {"solver": "lstsq", "direct": False}}}}
+    raw = {
+        "data": {
+            "generator": "narx-system",
+            "n": n,
+            "seed": 1,
+            "split": {"train": 1.0},
+            "transient": 1000,
+            "scaling": "none",
+        },
+        "model": {"family": "esn", "params": {"size": m, "readout": {"solver": "lstsq", "direct": False}}},
+    }
     spec = validate_spec(raw)
     engine.fit(validate_spec({**raw, "data": {**raw["data"], "n": 3000}}))  # warm the kernels
     t_fit = best_of(lambda: engine.fit(spec), 1)
@@ -76,7 +97,9 @@ def case(m: int, n: int) -> None:
     print(f"\nM = {m}, N = {n}")
     print(f"  dynmodel  internal drive   {t_drive:8.3f} us/step")
     print(f"  dynmodel  external free run{t_free:8.3f} us/step")
-    print(f"  numpy     loop, dense C    {t_np_dense:8.3f} us/step   ({t_np_dense / t_drive:5.1f}x slower than dynmodel)")
+    print(
+        f"  numpy     loop, dense C    {t_np_dense:8.3f} us/step   ({t_np_dense / t_drive:5.1f}x slower than dynmodel)"
+    )
     print(f"  numpy     loop, CSR C      {t_np_csr:8.3f} us/step   ({t_np_csr / t_drive:5.1f}x slower)")
     print(f"  (dynmodel and numpy states agree to {agree:.1e})")
     print(f"  dynmodel  fit (states + least-squares readout, {n} samples): {t_fit:6.2f} s")

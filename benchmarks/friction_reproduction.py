@@ -10,6 +10,7 @@ control of a GMS plant (6.4.5), and the real EMPS benchmark; writes the README f
 Models are fitted from the specs in specs/ (seed 0, as written) and saved next to --out. Prints
 figures; asserts nothing. Run with OPENBLAS_NUM_THREADS=1 on a shared machine.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,8 +38,13 @@ def fit(name: str, out: Path, figures: Path | None):
     model, runs = engine.fit_dataset(spec, ds)
     dynmodel.save(model, out / f"{name}.h5")
     m = model.metrics
-    line = "  ".join(f"{split} NMSE {m[split]['nmse']:.4g} % MAX {m[split]['max']:.3g}" if m[split].get("nmse") is not None
-                     else f"{split} unstable" for split in ("train", "validation", "test") if split in m)
+    line = "  ".join(
+        f"{split} NMSE {m[split]['nmse']:.4g} % MAX {m[split]['max']:.3g}"
+        if m[split].get("nmse") is not None
+        else f"{split} unstable"
+        for split in ("train", "validation", "test")
+        if split in m
+    )
     extra = ""
     if "rmse" in m.get("test", {}):
         extra = f"  test RMSE {m['test']['rmse']:.4g}, fit {m['test']['fit']:.2f} %"
@@ -75,6 +81,7 @@ def control(out: Path, figures: Path | None, realizations: int) -> dict:
         report = ctl.run(model, plant, ctl.Settings(realizations=realizations))
         s = report.summary()
         results[name] = {"static_test": model.metrics["test"], **report.to_json()}
+
         def fmt(stats, c):
             mean = f"{stats[c]['mean']:.3f}" if c in ("alpha", "beta") else f"{stats[c]['mean']:.4g}"
             return f"{ctl.LABELS[c]} {mean} ± {stats[c]['std']:.2g}"
@@ -87,11 +94,20 @@ def control(out: Path, figures: Path | None, realizations: int) -> dict:
             from dynmodel.plots import tracking_error
 
             ser = report.series
-            tracking_error(figures / f"{name}-control.png", ser["t"], ser["reference"], ser["error_model"],
-                           ser["error_perfect"], 50.0, 20.0,
-                           f"{name}: alpha {s['model']['alpha']['mean']:.4g} %, beta {s['model']['beta']['mean']:.4g} %")
-    print("  thesis: NMSE_s 0.302 %, MAX_s 0.159; NMSE_P 0.897 %, NMSE_ff 2.15e-3 %, alpha 99.76 %, beta 93.68 %;"
-          " perfect: alpha 99.992 %, beta 99.65 %")
+            tracking_error(
+                figures / f"{name}-control.png",
+                ser["t"],
+                ser["reference"],
+                ser["error_model"],
+                ser["error_perfect"],
+                50.0,
+                20.0,
+                f"{name}: alpha {s['model']['alpha']['mean']:.4g} %, beta {s['model']['beta']['mean']:.4g} %",
+            )
+    print(
+        "  thesis: NMSE_s 0.302 %, MAX_s 0.159; NMSE_P 0.897 %, NMSE_ff 2.15e-3 %, alpha 99.76 %, beta 93.68 %;"
+        " perfect: alpha 99.992 %, beta 99.65 %"
+    )
     (out / "control.json").write_text(json.dumps(results, indent=2) + "\n")
     return results
 
@@ -118,16 +134,20 @@ def emps_physical() -> None:
         v = (sim[t - 1] - sim[t - 2]) / h
         sim[t] = 2 * sim[t - 1] - sim[t - 2] + h * h * (gtau * ut[t - 1] - Fv * v - Fc * np.sign(v) - off) / M
     rmse = float(np.sqrt(np.mean((sim[20:] - qt[20:]) ** 2)))
-    print(f"  physical model (M {M:.1f} kg, F_v {Fv:.1f} N s/m, F_c {Fc:.1f} N, offset {off:.2f} N), open loop: "
-          f"test RMSE {rmse:.4g}, fit {100 * (1 - rmse / np.std(qt[20:])):.2f} %")
+    print(
+        f"  physical model (M {M:.1f} kg, F_v {Fv:.1f} N s/m, F_c {Fc:.1f} N, offset {off:.2f} N), open loop: "
+        f"test RMSE {rmse:.4g}, fit {100 * (1 - rmse / np.std(qt[20:])):.2f} %"
+    )
 
 
 def emps(out: Path, figures: Path | None) -> None:
     print("EMPS (real data): train DATA_EMPS, test DATA_EMPS_PULSES, first 20 test samples for the state:")
     fit("emps-benchmark-narx", out, figures)
     emps_physical()
-    print("  published: dynoNet fit 96.8 % (RMSE about 2.64e-3 m); best linear model fit 25.4 %; "
-          "NN baselines RMSE 0.074 - 0.22 m")
+    print(
+        "  published: dynoNet fit 96.8 % (RMSE about 2.64e-3 m); best linear model fit 25.4 %; "
+        "NN baselines RMSE 0.074 - 0.22 m"
+    )
     fit("emps-cross-esn", out, figures)
 
 
@@ -136,27 +156,51 @@ def data_figures(figures: Path) -> None:
     from dynmodel import registry
     from dynmodel.plots import recording
 
-    for name, spec_name, n in (("presliding", "thesis-6.2-presliding-narx", 24000),
-                               ("sliding", "thesis-6.3-sliding-narx", 25000),
-                               ("plant", "thesis-6.4.5-rnn", 20000)):
+    for name, spec_name, n in (
+        ("presliding", "thesis-6.2-presliding-narx", 24000),
+        ("sliding", "thesis-6.3-sliding-narx", 25000),
+        ("plant", "thesis-6.4.5-rnn", 20000),
+    ):
         spec = load_spec(SPECS / f"{spec_name}.yaml")
         gen = registry.source(spec.data.generator)
         params = spec.data.params
         u, y = gen.generate(params, n, np.random.default_rng(spec.data.seed))
         t = np.arange(n) * gen.sampling_time(params)
-        recording(figures / f"data-{name}.png", t, u, y, list(gen.input_names), list(gen.output_names),
-                  f"{spec.data.generator} as in {spec_name}.yaml (seed {spec.data.seed})")
+        recording(
+            figures / f"data-{name}.png",
+            t,
+            u,
+            y,
+            list(gen.input_names),
+            list(gen.output_names),
+            f"{spec.data.generator} as in {spec_name}.yaml (seed {spec.data.seed})",
+        )
     # non-local memory of pre-sliding hysteresis: nested loops (fig. 6.2 / 6.5)
     from dynmodel_plugins.friction.trajectories import Trajectory
 
     gen = registry.source("gms")
-    params = gen.Params.model_validate({"trajectory": {"kind": "reversals", "speed": 5e-6,
-                                                       "points": [0, 15e-6, -15e-6, 10e-6, -5e-6, 5e-6, -10e-6, 15e-6]},
-                                        "sampling_time": 0.01, "position_unit": "um"})
+    params = gen.Params.model_validate(
+        {
+            "trajectory": {
+                "kind": "reversals",
+                "speed": 5e-6,
+                "points": [0, 15e-6, -15e-6, 10e-6, -5e-6, 5e-6, -10e-6, 15e-6],
+            },
+            "sampling_time": 0.01,
+            "position_unit": "um",
+        }
+    )
     n = int(Trajectory(params.trajectory, np.random.default_rng(0)).total_duration / 0.01) + 50
     u, y = gen.generate(params, n, np.random.default_rng(0))
-    recording(figures / "data-memory.png", np.arange(n) * 0.01, u, y, ["position (um)"], ["force (N)"],
-              "GMS pre-sliding hysteresis: inner loops close onto the outer loop (non-local memory)")
+    recording(
+        figures / "data-memory.png",
+        np.arange(n) * 0.01,
+        u,
+        y,
+        ["position (um)"],
+        ["force (N)"],
+        "GMS pre-sliding hysteresis: inner loops close onto the outer loop (non-local memory)",
+    )
 
 
 def main() -> None:
@@ -167,8 +211,12 @@ def main() -> None:
     ap.add_argument("--emps", action="store_true")
     ap.add_argument("--all", action="store_true")
     ap.add_argument("--realizations", type=int, default=20)
-    ap.add_argument("--out", type=Path, default=ROOT / "out" / "friction", help="folder for model files and JSON "
-                    "(out/ is ignored by git)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=ROOT / "out" / "friction",
+        help="folder for model files and JSON (out/ is ignored by git)",
+    )
     ap.add_argument("--figures", type=Path, default=None, help="folder for PNG figures")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)

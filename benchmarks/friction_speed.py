@@ -6,17 +6,16 @@ vectorized with numpy), and of `dynmodel control`.
 GMS with 10 elements. Best of 3; the plain loops run on fewer steps (per-step times compared).
 Prints figures; asserts nothing.
 """
+
 from __future__ import annotations
 
-
 import numpy as np
+from timing import best_of
 
 from dynmodel_plugins.friction.laws import GmsFields
 from dynmodel_plugins.friction.plant import Plant, PlantParams, TrackingTask
 from dynmodel_plugins.friction.response import friction_force
 from dynmodel_plugins.friction.trajectories import Trajectory, TrajectoryParams
-
-from timing import best_of
 
 
 def gms_plain(law: GmsFields, x: np.ndarray, h: float) -> np.ndarray:
@@ -27,7 +26,7 @@ def gms_plain(law: GmsFields, x: np.ndarray, h: float) -> np.ndarray:
     out[0] = 0.0
     for j in range(len(x) - 1):
         dx = x[j + 1] - x[j]
-        g = law.coulomb + (law.static - law.coulomb) * np.exp(-(dx / h / law.stribeck_velocity) ** 2)
+        g = law.coulomb + (law.static - law.coulomb) * np.exp(-((dx / h / law.stribeck_velocity) ** 2))
         slip = (mode != 0) & (dx * mode > 0)
         target = mode * nu * g
         F = np.where(slip, target + (F - target) * np.exp(-C * h / (nu * g)), F)
@@ -50,7 +49,7 @@ def plant_plain(params: PlantParams, ref: np.ndarray, dref: np.ndarray, noise: n
     S, mode = np.zeros(law.elements), np.zeros(law.elements)
 
     def g(v):
-        return law.coulomb + (law.static - law.coulomb) * np.exp(-(v / law.stribeck_velocity) ** 2)
+        return law.coulomb + (law.static - law.coulomb) * np.exp(-((v / law.stribeck_velocity) ** 2))
 
     def rates(V, S, i, r):
         dS = np.where(mode == 0, k * V, C * (mode - S / (nu * g(V))))
@@ -72,8 +71,10 @@ def plant_plain(params: PlantParams, ref: np.ndarray, dref: np.ndarray, noise: n
             a3, d3 = rates(V + 0.5 * h * a2, S + 0.5 * h * d2, i0 + 1, r)
             P_stage[0] = P + h * (V + 0.5 * h * a2)
             a4, d4 = rates(V + h * a3, S + h * d3, i0 + 2, r)
-            P, V = (P + h / 6 * (V + 2 * (V + 0.5 * h * a1) + 2 * (V + 0.5 * h * a2) + (V + h * a3)),
-                    V + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4))
+            P, V = (
+                P + h / 6 * (V + 2 * (V + 0.5 * h * a1) + 2 * (V + 0.5 * h * a2) + (V + h * a3)),
+                V + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4),
+            )
             S = S + h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
             lim = nu * g(V)
             mode = np.where((mode != 0) & (V * mode <= 0), 0.0, mode)
@@ -94,9 +95,11 @@ def main() -> None:
     n_plain = 20000
     t_plain = best_of(lambda: gms_plain(law, x[:n_plain], h), 1)
     diff = np.max(np.abs(gms_plain(law, x[:n_plain], h) - friction_force(law, x[:n_plain], v[:n_plain], h, 1)))
-    print(f"GMS along a trajectory (10 elements): compiled {1e9 * t_fast / (len(x) - 1):.1f} ns/substep, "
-          f"plain numpy {1e9 * t_plain / (n_plain - 1):.0f} ns/substep ({t_plain / (n_plain - 1) / (t_fast / (len(x) - 1)):.0f}x); "
-          f"largest difference {diff:.1e} N")
+    print(
+        f"GMS along a trajectory (10 elements): compiled {1e9 * t_fast / (len(x) - 1):.1f} ns/substep, "
+        f"plain numpy {1e9 * t_plain / (n_plain - 1):.0f} ns/substep ({t_plain / (n_plain - 1) / (t_fast / (len(x) - 1)):.0f}x); "
+        f"largest difference {diff:.1e} N"
+    )
 
     params = PlantParams()
     plant = Plant(params)
@@ -110,9 +113,11 @@ def main() -> None:
     fast = task.start(n_plain, np.random.default_rng(1)).position
     diff = np.max(np.abs(plant_plain(params, task.ref_grid, task.dref_grid, noise, n_plain) - fast))
     steps = params.substeps
-    print(f"plant, RK4 with {steps} substeps per 1 ms sample: compiled {1e6 * t_fast / n:.2f} us/sample "
-          f"({1e9 * t_fast / n / steps:.0f} ns/RK4 step), plain numpy {1e6 * t_plain / n_plain:.0f} us/sample "
-          f"({t_plain / n_plain / (t_fast / n):.0f}x); largest position difference {diff:.1e} m")
+    print(
+        f"plant, RK4 with {steps} substeps per 1 ms sample: compiled {1e6 * t_fast / n:.2f} us/sample "
+        f"({1e9 * t_fast / n / steps:.0f} ns/RK4 step), plain numpy {1e6 * t_plain / n_plain:.0f} us/sample "
+        f"({t_plain / n_plain / (t_fast / n):.0f}x); largest position difference {diff:.1e} m"
+    )
     t_ref = best_of(lambda: TrackingTask(plant, n, np.random.default_rng(0)))
     t_perf = best_of(lambda: task.perfect_feedforward())
     print(f"100 s reference (2 x 10 x 1e5 points): {t_ref:.2f} s; perfect feed-forward: {t_perf:.2f} s")

@@ -6,6 +6,7 @@ rossler-cross task; also random (not annealed) networks of 32 and 200 elements f
 Test NMSE (%) of the free run on a fresh 10000-sample realization (first 1000 not scored).
 Prints figures; asserts nothing.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,8 +36,10 @@ def runs(spec_file: str, seeds, **params) -> tuple[np.ndarray, float]:
 
 
 def line(label: str, v: np.ndarray, sec: float) -> str:
-    return (f"  {label:44s} mean {np.mean(v):7.3f}  std {np.std(v):6.3f}  median {np.median(v):7.3f}  "
-            f"min {np.min(v):6.3f}  max {np.max(v):6.3f}   ({sec:.1f} s per fit)")
+    return (
+        f"  {label:44s} mean {np.mean(v):7.3f}  std {np.std(v):6.3f}  median {np.median(v):7.3f}  "
+        f"min {np.min(v):6.3f}  max {np.max(v):6.3f}   ({sec:.1f} s per fit)"
+    )
 
 
 def main() -> None:

@@ -9,12 +9,14 @@ Prints figures; asserts nothing.
 
     python benchmarks/lorenz_speed.py [--size 32] [--n 10000] [--substeps 4]
 """
+
 from __future__ import annotations
 
 import argparse
 import time
 
 import numpy as np
+from timing import best_of
 
 from dynmodel.anneal import Schedule, anneal
 from dynmodel.data import Preprocessor, load_dataset, training_data
@@ -22,8 +24,6 @@ from dynmodel.spec import validate_spec
 from dynmodel_plugins.lorenz_net.elements import simulate_network
 from dynmodel_plugins.lorenz_net.params import LorenzNetParams
 from dynmodel_plugins.lorenz_net.search import Evaluator, initial_state, make_moves
-
-from timing import best_of
 
 
 def numpy_parallel(params: np.ndarray, B: np.ndarray, U: np.ndarray, dt: float, substeps: int) -> np.ndarray:
@@ -33,8 +33,14 @@ def numpy_parallel(params: np.ndarray, B: np.ndarray, U: np.ndarray, dt: float, 
     x = np.zeros((params.shape[0], 3))
 
     def rhs(x: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return np.stack([a * s * (v - x[:, 0]), a * (r * x[:, 0] - x[:, 1] - x[:, 0] * x[:, 2]),
-                         a * (x[:, 0] * x[:, 1] - b * x[:, 2])], axis=1)
+        return np.stack(
+            [
+                a * s * (v - x[:, 0]),
+                a * (r * x[:, 0] - x[:, 1] - x[:, 0] * x[:, 2]),
+                a * (x[:, 0] * x[:, 1] - b * x[:, 2]),
+            ],
+            axis=1,
+        )
 
     out = np.empty((U.shape[0], params.shape[0], 3))
     for t in range(U.shape[0]):
@@ -55,9 +61,18 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=10000)
     ap.add_argument("--substeps", type=int, default=4)
     args = ap.parse_args()
-    spec = validate_spec({"data": {"generator": "rossler-cross", "n": args.n, "seed": 1,
-                                   "split": {"train": 0.7, "validation": 0.3}, "scaling": "none"},
-                          "model": {"family": "lorenz-net", "params": {"size": args.size, "substeps": args.substeps}}})
+    spec = validate_spec(
+        {
+            "data": {
+                "generator": "rossler-cross",
+                "n": args.n,
+                "seed": 1,
+                "split": {"train": 0.7, "validation": 0.3},
+                "scaling": "none",
+            },
+            "model": {"family": "lorenz-net", "params": {"size": args.size, "substeps": args.substeps}},
+        }
+    )
     ds = load_dataset(spec)
     td = training_data(ds, Preprocessor.fit(ds, [], "none"))
     U = np.ascontiguousarray(td.series[0].u)
@@ -72,8 +87,10 @@ def main() -> None:
     Xn = numpy_parallel(state.params, state.B, U[:2000], dt, p.substeps)
     diff = float(np.max(np.abs(X[:2000] - Xn)))
     steps = args.n * args.size * args.substeps
-    print(f"RK4 over {args.size} Lorenz elements, {args.n} samples, {args.substeps} substeps "
-          f"({steps / 1e6:.2f} M element-steps):")
+    print(
+        f"RK4 over {args.size} Lorenz elements, {args.n} samples, {args.substeps} substeps "
+        f"({steps / 1e6:.2f} M element-steps):"
+    )
     print(f"  dynmodel (numba)     {fast * 1e3:8.1f} ms   {1e9 * fast / steps:6.1f} ns per element-step")
     print(f"  plain numpy          {slow * 1e3:8.1f} ms   {1e9 * slow / steps:6.1f} ns per element-step")
     print(f"  speed-up             {slow / fast:8.1f}x   (largest state difference over 2000 samples: {diff:.1e})")
@@ -87,9 +104,11 @@ def main() -> None:
         t0 = time.perf_counter()
         anneal(s0, start, ev.score, make_moves(q), Schedule(q.steps, q.t0, q.t_end), rng)
         sec = time.perf_counter() - t0
-        print(f"  annealing, {strategy:12s} {1e3 * sec / q.steps:6.1f} ms per step "
-              f"({ev.element_integrations / ev.evaluations:.1f} elements integrated per step on average; "
-              f"400 steps: {4 * sec:.1f} s)")
+        print(
+            f"  annealing, {strategy:12s} {1e3 * sec / q.steps:6.1f} ms per step "
+            f"({ev.element_integrations / ev.evaluations:.1f} elements integrated per step on average; "
+            f"400 steps: {4 * sec:.1f} s)"
+        )
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ validation outputs (noise seeds 0 .. seeds-1). Variants (rows):
 Printed: the median [min, max] over the noise seeds of the free-run NMSE (%) on the clean test
 realization. Prints figures; asserts nothing.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -44,9 +45,13 @@ def clean_structure() -> list[str]:
 
 
 def variants(terms: list[str]) -> dict[str, tuple[Path, str, dict]]:
-    return {"fos8 mse1": (BASE, "mse1", {}), "fos8 mse_inf": (BASE, "mse_inf", {}),
-            "free_run mse_inf": (FREE, "mse_inf", {}),
-            "eq3.38 mse1": (BASE, "mse1", {"terms": terms}), "eq3.38 mse_inf": (BASE, "mse_inf", {"terms": terms})}
+    return {
+        "fos8 mse1": (BASE, "mse1", {}),
+        "fos8 mse_inf": (BASE, "mse_inf", {}),
+        "free_run mse_inf": (FREE, "mse_inf", {}),
+        "eq3.38 mse1": (BASE, "mse1", {"terms": terms}),
+        "eq3.38 mse_inf": (BASE, "mse_inf", {"terms": terms}),
+    }
 
 
 def run(path: Path, cost: str, params: dict, level: float, seed: int) -> tuple[float, int, float]:
@@ -85,9 +90,14 @@ def main() -> None:
         for name, (path, cost, params) in table.items():
             rows = [run(path, cost, params, level, seed) for seed in range(args.seeds)]
             v = np.array([r[0] for r in rows])
-            results.setdefault(name, {})[level] = {"nmse": v.tolist(), "terms": [r[1] for r in rows],
-                                                   "seconds": [r[2] for r in rows]}
-            cells.append(f"{np.median(v):7.4g} [{np.min(v):6.3g}, {np.max(v):6.3g}] ({int(np.median([r[1] for r in rows]))})")
+            results.setdefault(name, {})[level] = {
+                "nmse": v.tolist(),
+                "terms": [r[1] for r in rows],
+                "seconds": [r[2] for r in rows],
+            }
+            cells.append(
+                f"{np.median(v):7.4g} [{np.min(v):6.3g}, {np.max(v):6.3g}] ({int(np.median([r[1] for r in rows]))})"
+            )
         print(f"{level:5.1f} " + "".join(f"| {c:>30} " for c in cells), flush=True)
     print(f"\n({time.perf_counter() - t_start:.0f} s)")
     if args.json:

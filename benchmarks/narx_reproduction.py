@@ -16,6 +16,7 @@
 The noise seed changes only the noise realization (the data seed is fixed in the specs).
 Prints figures; asserts nothing.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -54,21 +55,35 @@ def main() -> None:
     seeds = range(args.seeds)
     t0 = time.perf_counter()
     print(f"3.2.2 linear system, noise variance 0.64 x output variance, N = 10000 ({args.seeds} noise seeds)")
-    table("thesis-3.2.2-linear.yaml", {"y[t-1]": "a", "u[t]": "b"},
-          {"mse1": {"y[t-1]": 0.8 / 1.64, "u[t]": 1.0}, "mse_inf": {"y[t-1]": 0.8, "u[t]": 1.0}}, seeds)
+    table(
+        "thesis-3.2.2-linear.yaml",
+        {"y[t-1]": "a", "u[t]": "b"},
+        {"mse1": {"y[t-1]": 0.8 / 1.64, "u[t]": 1.0}, "mse_inf": {"y[t-1]": 0.8, "u[t]": 1.0}},
+        seeds,
+    )
     print(f"\n3.2.3 driven logistic map, noise std = output std, N = 10000 ({args.seeds} noise seeds)")
     truth = {"y[t-1]": 2.0, "y[t-1]^2": -2.0, "u[t]": 0.5}
-    table("thesis-3.2.3-logistic.yaml", {"y[t-1]": "a", "y[t-1]^2": "b", "u[t]": "c"},
-          {"mse1": truth, "mse_inf": truth}, seeds)
-    print("\n3.2.4 NARX system (eq. 3.37), degree-5 pool of u_t, u_t-1, u_t-2, y_t-1, y_t-2 (252 monomials), clean data")
-    for label, changes in [("FOS, 8 terms", {}), ("FOS, first rise of the validation error",
-                                                   {"max_terms": None, "patience": 1})]:
+    table(
+        "thesis-3.2.3-logistic.yaml",
+        {"y[t-1]": "a", "y[t-1]^2": "b", "u[t]": "c"},
+        {"mse1": truth, "mse_inf": truth},
+        seeds,
+    )
+    print(
+        "\n3.2.4 NARX system (eq. 3.37), degree-5 pool of u_t, u_t-1, u_t-2, y_t-1, y_t-2 (252 monomials), clean data"
+    )
+    for label, changes in [
+        ("FOS, 8 terms", {}),
+        ("FOS, first rise of the validation error", {"max_terms": None, "patience": 1}),
+    ]:
         spec = load_spec(SPECS / "thesis-3.2.4-narx.yaml")
         for key, value in changes.items():
             setattr(spec.model.params, key, value)
         m = engine.fit(spec)
-        print(f"  {label}: {len(m.family.weights_)} terms, test NMSE {m.metrics['test']['nmse']:.4f} % "
-              f"(one-step {m.metrics['test']['nmse_1']:.4f} %)")
+        print(
+            f"  {label}: {len(m.family.weights_)} terms, test NMSE {m.metrics['test']['nmse']:.4f} % "
+            f"(one-step {m.metrics['test']['nmse_1']:.4f} %)"
+        )
         print(f"    y = {m.family.summary()['model y']}")
     print(f"\n({time.perf_counter() - t0:.0f} s)")
 

@@ -20,6 +20,7 @@ free-run NMSE (%) on the clean test realization from sample 3 on (both start fro
 first outputs), and free-run microseconds per step (dynmodel's compiled kernel, SysIdentPy's
 ``predict``, and a plain numpy loop of the same model). Prints figures; asserts nothing.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,12 +28,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+from timing import best_of
 
 from dynmodel.data import Preprocessor, load_dataset, training_data
 from dynmodel.spec import NoiseSpec, load_spec
 from dynmodel_plugins.narx import Narx
-
-from timing import best_of
 
 try:  # optional peer
     from sysidentpy.basis_function import Polynomial
@@ -67,7 +67,7 @@ def ours(spec, ds, td, cost: str) -> tuple[float, float, Narx]:
     fam.fit(td, cost)
     seconds = time.perf_counter() - t0
     test = ds.recordings[-1]
-    return seconds, nmse(test.y, fam.simulate(test.u, test.y[:fam.warmup]).y), fam
+    return seconds, nmse(test.y, fam.simulate(test.u, test.y[: fam.warmup]).y), fam
 
 
 def advanced(u: np.ndarray) -> np.ndarray:
@@ -77,8 +77,15 @@ def advanced(u: np.ndarray) -> np.ndarray:
 
 
 def peer(ds, n_train: int, estimator=None) -> tuple[float, float, object]:
-    model = FROLS(order_selection=False, n_terms=8, ylag=2, xlag=3, estimator=estimator or LeastSquares(),
-                  basis_function=Polynomial(degree=5), model_type="NARMAX")
+    model = FROLS(
+        order_selection=False,
+        n_terms=8,
+        ylag=2,
+        xlag=3,
+        estimator=estimator or LeastSquares(),
+        basis_function=Polynomial(degree=5),
+        model_type="NARMAX",
+    )
     rec = ds.recordings[0]
     t0 = time.perf_counter()
     model.fit(X=advanced(rec.u[:n_train]), y=rec.y[:n_train])
@@ -92,10 +99,10 @@ def numpy_free_run(fam: Narx, u: np.ndarray, y0: np.ndarray) -> np.ndarray:
     src, ch, lag = fam.embedding_.arrays()
     E, w = fam.exponents_, fam.weights_
     y = np.zeros(len(u))
-    y[:len(y0)] = y0
+    y[: len(y0)] = y0
     for t in range(len(y0), len(u)):
         x = np.where(src == 0, u[t - lag, 0], y[t - lag])
-        y[t] = w @ np.prod(x ** E, axis=1)
+        y[t] = w @ np.prod(x**E, axis=1)
     return y
 
 
@@ -114,8 +121,10 @@ def speed(n: int) -> None:
         for _ in range(2 if n <= 20000 else 1):
             s, e_peer, model = peer(ds, n_train)
             t_peer.append(s)
-        print(f"  SysIdentPy FROLS.fit (8 terms, LS)        {min(t_peer):7.3f} s   test NMSE {e_peer:.4f} %   "
-              f"-> dynmodel fits {min(t_peer) / min(t_ours):.1f}x faster")
+        print(
+            f"  SysIdentPy FROLS.fit (8 terms, LS)        {min(t_peer):7.3f} s   test NMSE {e_peer:.4f} %   "
+            f"-> dynmodel fits {min(t_peer) / min(t_ours):.1f}x faster"
+        )
     # the Gram matrix of the pool: one compiled pass over the monomial sums against BLAS on the pool
     from dynmodel_plugins.narx import pool as narx_pool
     from dynmodel_plugins.narx.onestep import make_pool
@@ -133,8 +142,11 @@ def speed(n: int) -> None:
     steps = 20000
     t_np = best_of(lambda: numpy_free_run(fam, u[:steps], y0[:, 0]), 1) / steps * 1e6
     agree = float(np.nanmax(np.abs(numpy_free_run(fam, u[:2000], y0[:, 0]) - fam.simulate(u[:2000], y0).y[:, 0])))
-    print(f"  free run: dynmodel {t_free:.3f} us/step; plain numpy loop {t_np:.2f} us/step ({t_np / t_free:.0f}x slower, "
-          f"agrees to {agree:.1e})", end="")
+    print(
+        f"  free run: dynmodel {t_free:.3f} us/step; plain numpy loop {t_np:.2f} us/step ({t_np / t_free:.0f}x slower, "
+        f"agrees to {agree:.1e})",
+        end="",
+    )
     if FROLS is not None:
         x = advanced(u)
         model.predict(X=x[:100], y=np.zeros((SKIP, 1)))
@@ -183,7 +195,7 @@ def main() -> None:
     ours(load_spec(SPEC), ds, td, "mse_inf")
     if FROLS is not None:
         peer(ds, 1600)
-    for n in ([10000] if args.quick else [10000, 100000]):
+    for n in [10000] if args.quick else [10000, 100000]:
         speed(n)
     if not args.no_sweep:
         levels = [0.0, 0.5, 1.0] if args.quick else [float(x) for x in args.levels.split(",")]

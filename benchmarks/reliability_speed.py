@@ -18,6 +18,7 @@ Prints figures (best of ``--repeats`` runs after a warm-up that compiles the ker
     python benchmarks/reliability_speed.py            # M = 200, 1000 (sparse) and 200 (dense)
     python benchmarks/reliability_speed.py --quick    # M = 200 sparse only
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,14 +35,23 @@ from dynmodel_plugins.esn.params import EsnParams
 
 
 def network(m: int, dense: bool) -> SigmoidNetwork:
-    params = EsnParams(size=m, connectivity=1.0, scale={"by": "spectral", "value": 0.95}) if dense else EsnParams(size=m)
+    params = (
+        EsnParams(size=m, connectivity=1.0, scale={"by": "spectral", "value": 0.95}) if dense else EsnParams(size=m)
+    )
     import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         net = build_network(params, 1, 0, np.random.default_rng(0))
-    return SigmoidNetwork(net.C, net.B, net.c0, net.a, net.g, InputDomain.from_range(["u"], -2.0, 2.0),
-                          name=f"esn M={m}{' dense' if dense else ''}")
+    return SigmoidNetwork(
+        net.C,
+        net.B,
+        net.c0,
+        net.a,
+        net.g,
+        InputDomain.from_range(["u"], -2.0, 2.0),
+        name=f"esn M={m}{' dense' if dense else ''}",
+    )
 
 
 def best_of(fn, repeats: int) -> tuple[float, object]:
@@ -92,14 +102,20 @@ def case(m: int, dense: bool, repeats: int) -> None:
     steps = len(signals) * settings.replicas * n
     label = f"M = {m}{' dense (spectral 0.95)' if dense else ''}"
     print(f"{label}: verdict {report.verdict.verdict}; sigma(C) = {report.evidence[0].value:.3g}")
-    print(f"  whole check (replicas, exponents, constant scan) ....... {t_check:8.2f} s   "
-          f"({', '.join(f'{k} {v:.2f}' for k, v in report.timing.items() if k != 'total')})")
+    print(
+        f"  whole check (replicas, exponents, constant scan) ....... {t_check:8.2f} s   "
+        f"({', '.join(f'{k} {v:.2f}' for k, v in report.timing.items() if k != 'total')})"
+    )
     print(f"  replica test, dynmodel as shipped ........................ {t_ours:8.2f} s")
-    print(f"  replica test, dynmodel without merging ({steps / 1e6:.2f} M replica-steps) {t_full:6.2f} s   "
-          f"{1e6 * t_full / steps:.2f} us per replica-step")
-    print(f"  replica test, plain numpy loop ({'dense' if dense else 'scipy CSR'}) ..................... {t_np:8.2f} s   "
-          f"{1e6 * t_np / steps:.2f} us per replica-step ({t_np / t_full:.1f}x slower than without merging, "
-          f"{t_np / t_ours:.0f}x than shipped)")
+    print(
+        f"  replica test, dynmodel without merging ({steps / 1e6:.2f} M replica-steps) {t_full:6.2f} s   "
+        f"{1e6 * t_full / steps:.2f} us per replica-step"
+    )
+    print(
+        f"  replica test, plain numpy loop ({'dense' if dense else 'scipy CSR'}) ..................... {t_np:8.2f} s   "
+        f"{1e6 * t_np / steps:.2f} us per replica-step ({t_np / t_full:.1f}x slower than without merging, "
+        f"{t_np / t_ours:.0f}x than shipped)"
+    )
 
 
 def main() -> None:

@@ -1,8 +1,9 @@
 """Wall-clock helper shared by the benchmark scripts (run them as ``python benchmarks/NAME.py``)."""
+
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 
 def best_of(fn: Callable[[], object], repeats: int = 3) -> float:

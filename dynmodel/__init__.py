@@ -9,6 +9,7 @@ Python API (mirrors the CLI)::
     model = dynmodel.load("model.h5")
     y = model.predict(u)                  # free run in physical units
 """
+
 from __future__ import annotations
 
 __version__ = "0.1.0"

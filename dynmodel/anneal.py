@@ -8,14 +8,16 @@ accepted; a worse one with probability ``exp(delta / T)``, where ``delta`` is th
 of the objective ``(old - new) / old`` (eq. 5.57, negative for a worse candidate). The best state
 seen is kept; Ctrl-C stops the run and returns it.
 """
+
 from __future__ import annotations
 
 import math
 import os
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, Callable, Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
@@ -58,10 +60,16 @@ def relative_improvement(old: float, new: float) -> float:
     return (old - new) / old
 
 
-def anneal(state: S, score: float, objective: Callable[[S], float], moves: list[tuple[str, float, Move]],
-           schedule: Schedule, rng: np.random.Generator,
-           on_step: Callable[[int, float, float, float, dict[str, Any]], None] | None = None,
-           stop: Callable[[int, float], bool] | None = None) -> AnnealResult[S]:
+def anneal(
+    state: S,
+    score: float,
+    objective: Callable[[S], float],
+    moves: list[tuple[str, float, Move]],
+    schedule: Schedule,
+    rng: np.random.Generator,
+    on_step: Callable[[int, float, float, float, dict[str, Any]], None] | None = None,
+    stop: Callable[[int, float], bool] | None = None,
+) -> AnnealResult[S]:
     """Anneal ``state`` (objective ``score``) with ``moves`` (name, weight, move).
 
     ``on_step(step, temperature, current_score, best_score, info)`` reports progress;
@@ -89,8 +97,14 @@ def anneal(state: S, score: float, objective: Callable[[S], float], moves: list[
                     current, current_score, accepted = candidate, new_score, True
                     if new_score < best_score:
                         best, best_score = candidate, new_score
-            info = {"step": step, "move": names[k], "temperature": temperature, "score": new_score,
-                    "accepted": accepted, "best": best_score}
+            info = {
+                "step": step,
+                "move": names[k],
+                "temperature": temperature,
+                "score": new_score,
+                "accepted": accepted,
+                "best": best_score,
+            }
             history.append(info)
             if on_step is not None:
                 on_step(step, temperature, current_score, best_score, info)
@@ -105,8 +119,12 @@ def anneal(state: S, score: float, objective: Callable[[S], float], moves: list[
 R = TypeVar("R")
 
 
-def run_restarts(search: Callable[[int, np.random.Generator, threading.Event], R], restarts: int, workers: int,
-                 rng: np.random.Generator) -> list[R]:
+def run_restarts(
+    search: Callable[[int, np.random.Generator, threading.Event], R],
+    restarts: int,
+    workers: int,
+    rng: np.random.Generator,
+) -> list[R]:
     """Run ``search(k, rng_k, halt)`` for k = 0 .. restarts-1 with independent random streams,
     in up to ``workers`` threads (0: one per core); compiled kernels release the GIL. Results do
     not depend on the number of threads. Ctrl-C sets ``halt``: every run should then stop and

@@ -1,4 +1,5 @@
 """Orchestration: spec -> data -> family.fit -> fitted model -> evaluation."""
+
 from __future__ import annotations
 
 import platform
@@ -60,11 +61,20 @@ def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[Fi
         family = family_cls(**params)
         family.fit(td, spec.cost, family_rng(spec.seed), progress)
     except ValueError as exc:
-        raise DynmodelError(str(exc), f"{spec.source}: model ({spec.model.family})",
-                            "adjust model.params or the data split") from exc
+        raise DynmodelError(
+            str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
+        ) from exc
     train_u, lengths = ds.concat_inputs("train")
-    model = FittedModel(family, pre, td.output_bounds(), spec.resolved(), provenance=_provenance(spec, ds),
-                        train_input=train_u, train_input_lengths=lengths, train_output=ds.concat_outputs("train"))
+    model = FittedModel(
+        family,
+        pre,
+        td.output_bounds(),
+        spec.resolved(),
+        provenance=_provenance(spec, ds),
+        train_input=train_u,
+        train_input_lengths=lengths,
+        train_output=ds.concat_outputs("train"),
+    )
     progress("evaluate", None, "free runs over every recording")
     model.metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
     return model, runs

@@ -3,6 +3,7 @@
 Exit codes follow the project conventions: 0 success, 1 a check ran and failed
 (for example a diverging free run), 2 usage, spec or data error.
 """
+
 from __future__ import annotations
 
 EXIT_OK = 0
@@ -49,7 +50,6 @@ class FreeRunDiverged(DynmodelError):
 
     exit_code = EXIT_CHECK_FAILED
 
-    def __init__(self, what: str, where: str | None = None, fix: str | None = None,
-                 sample: int | None = None):
+    def __init__(self, what: str, where: str | None = None, fix: str | None = None, sample: int | None = None):
         self.sample = sample
         super().__init__(what, where, fix)

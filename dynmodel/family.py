@@ -6,11 +6,13 @@ scikit-learn habits: parameters in the constructor (validated by the family's py
 family sees and returns are in model space (scaled, delay lines applied); the engine does the
 conversion from and to physical units.
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -67,8 +69,13 @@ class Family(ABC):
 
     # -- fitting -------------------------------------------------------------------------
     @abstractmethod
-    def fit(self, data: TrainingData, cost: str = "mse1", rng: np.random.Generator | None = None,
-            progress: Progress = no_progress) -> "Family":
+    def fit(
+        self,
+        data: TrainingData,
+        cost: str = "mse1",
+        rng: np.random.Generator | None = None,
+        progress: Progress = no_progress,
+    ) -> Family:
         """Fit to ``data`` minimising ``cost`` ('mse1' or 'mse_inf'); return self."""
 
     # -- prediction ----------------------------------------------------------------------
@@ -78,8 +85,9 @@ class Family(ABC):
         return 0
 
     @abstractmethod
-    def simulate(self, u: np.ndarray, y_measured: np.ndarray | None = None,
-                 bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Simulation:
+    def simulate(
+        self, u: np.ndarray, y_measured: np.ndarray | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> Simulation:
         """Free run over ``u`` (n, n_inputs) from the rest state.
 
         ``y_measured`` provides at least the first ``warmup`` measured outputs. When the
@@ -97,12 +105,11 @@ class Family(ABC):
 
     @classmethod
     @abstractmethod
-    def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray],
-                    attrs: dict[str, Any]) -> "Family":
+    def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> Family:
         """Rebuild a fitted model from :meth:`to_arrays` output."""
 
     # -- reliability -----------------------------------------------------------------------
-    def driven_system(self) -> "DrivenSystem | None":
+    def driven_system(self) -> DrivenSystem | None:
         """The fitted model as a batched driven system x_t = f(x_{t-1}, v_t) in model space, for
         ``dynmodel reliability-check`` (see :mod:`dynmodel.reliability.system`); None when the
         family has no state to test."""

@@ -8,6 +8,7 @@ FIT  = 100 % * (1 - RMSE / std(y))                 (the "fit" of the nonlinear b
 Both are computed per output channel over the scored samples of a split, pooled over
 recordings; ``var(y)`` and ``std(y)`` are those of the measured output on the same samples.
 """
+
 from __future__ import annotations
 
 import numpy as np

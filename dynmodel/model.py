@@ -1,8 +1,10 @@
 """A fitted model in physical units: family + preprocessing + metadata, and its evaluation."""
+
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -61,7 +63,9 @@ class FittedModel:
         if u.ndim != 2 or u.shape[1] != len(self.input_names):
             raise ValueError(f"expected {len(self.input_names)} input column(s) {self.input_names}, got {u.shape[1]}")
         if not np.isfinite(u).all():
-            raise ValueError(f"the input has NaN or inf at sample {int(np.flatnonzero(~np.isfinite(u).all(axis=1))[0])}")
+            raise ValueError(
+                f"the input has NaN or inf at sample {int(np.flatnonzero(~np.isfinite(u).all(axis=1))[0])}"
+            )
         return u
 
     def run(self, u, y_measured: np.ndarray | None = None) -> Run:
@@ -92,8 +96,9 @@ class FittedModel:
         return None
 
 
-def evaluate(model: FittedModel, ds: Dataset, metrics: list[str] = ("nmse", "max"),
-             one_step: bool = True) -> tuple[dict[str, Any], list[Run]]:
+def evaluate(
+    model: FittedModel, ds: Dataset, metrics: list[str] = ("nmse", "max"), one_step: bool = True
+) -> tuple[dict[str, Any], list[Run]]:
     """Free-run every recording from its first sample to its end and score each split."""
     warm = model.warmup
     runs = [model.run(r.u, r.y[:warm] if warm else None) for r in ds.recordings]
@@ -122,8 +127,9 @@ def evaluate(model: FittedModel, ds: Dataset, metrics: list[str] = ("nmse", "max
             for m, v in values.items():
                 entry[m] = float(np.max(v)) if m == "max" else (float(np.min(v)) if m == "fit" else float(np.mean(v)))
             if len(model.output_names) > 1:
-                entry["per_output"] = {name: {m: float(values[m][i]) for m in metrics}
-                                       for i, name in enumerate(model.output_names)}
+                entry["per_output"] = {
+                    name: {m: float(values[m][i]) for m in metrics} for i, name in enumerate(model.output_names)
+                }
         if one is not None:
             y1 = np.concatenate([one[r][a:b] for r, a, b in rows])
             entry["nmse_1"] = float(np.mean(nmse(y, y1)))

@@ -1,4 +1,5 @@
 """PNG plots a user looks at after a fit or a prediction (matplotlib, Agg backend)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -26,9 +27,17 @@ def _limits(y: np.ndarray) -> tuple[float, float] | None:
     return lo - pad, hi + pad
 
 
-def measured_vs_simulated(path: Path, t: np.ndarray, y: np.ndarray, yhat: np.ndarray, names: list[str],
-                          title: str, spans: list[tuple[str, float, float]] | None = None,
-                          zoom: tuple[int, int] | None = None, tune_in: int = 0) -> Path:
+def measured_vs_simulated(
+    path: Path,
+    t: np.ndarray,
+    y: np.ndarray,
+    yhat: np.ndarray,
+    names: list[str],
+    title: str,
+    spans: list[tuple[str, float, float]] | None = None,
+    zoom: tuple[int, int] | None = None,
+    tune_in: int = 0,
+) -> Path:
     """Measured and free-running output over the whole recording (splits shaded, tune-in greyed),
     a zoom on ``zoom`` samples, and the error below. The y-range follows the measured output, so
     a diverging or untuned stretch does not hide the rest."""
@@ -37,8 +46,9 @@ def measured_vs_simulated(path: Path, t: np.ndarray, y: np.ndarray, yhat: np.nda
     n = len(t)
     if zoom is None:
         zoom = (min(tune_in, max(n - 1, 0)), min(n, tune_in + 500))
-    fig, axes = plt.subplots(3 * q, 1, figsize=(11, 6.5 * q), squeeze=False,
-                             gridspec_kw={"height_ratios": [2.2, 2.2, 1] * q})
+    fig, axes = plt.subplots(
+        3 * q, 1, figsize=(11, 6.5 * q), squeeze=False, gridspec_kw={"height_ratios": [2.2, 2.2, 1] * q}
+    )
     for k in range(q):
         full, near, err = axes[3 * k, 0], axes[3 * k + 1, 0], axes[3 * k + 2, 0]
         lim = _limits(y[:, k]) if np.isfinite(y[:, k]).any() else _limits(yhat[:, k])
@@ -76,8 +86,9 @@ def measured_vs_simulated(path: Path, t: np.ndarray, y: np.ndarray, yhat: np.nda
     return path
 
 
-def recording(path: Path, t: np.ndarray, u: np.ndarray, y: np.ndarray, input_names: list[str],
-              output_names: list[str], title: str) -> Path:
+def recording(
+    path: Path, t: np.ndarray, u: np.ndarray, y: np.ndarray, input_names: list[str], output_names: list[str], title: str
+) -> Path:
     """A generated recording: inputs and outputs against time, and every output against the first
     input (for friction data: force against position, the hysteresis loops of fig. 6.2 / 6.5 / 6.8)."""
     plt = _pyplot()
@@ -114,8 +125,17 @@ def recording(path: Path, t: np.ndarray, u: np.ndarray, y: np.ndarray, input_nam
     return path
 
 
-def tracking_error(path: Path, t: np.ndarray, reference: np.ndarray, error: np.ndarray, error_perfect: np.ndarray,
-                   switch: float, skip: float, title: str, window: float = 5.0) -> Path:
+def tracking_error(
+    path: Path,
+    t: np.ndarray,
+    reference: np.ndarray,
+    error: np.ndarray,
+    error_perfect: np.ndarray,
+    switch: float,
+    skip: float,
+    title: str,
+    window: float = 5.0,
+) -> Path:
     """Thesis fig. 6.25: reference and position in a window before and after the switch, the tracking
     error over the whole run, and the error after the switch for the model and the perfect model."""
     plt = _pyplot()

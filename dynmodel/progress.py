@@ -1,5 +1,6 @@
 """Progress on stderr: a live line on a terminal; otherwise log lines on stage changes and every few
 seconds, starting once a run has lasted two seconds."""
+
 from __future__ import annotations
 
 import sys
@@ -10,8 +11,9 @@ from typing import TextIO
 class Reporter:
     """Callable ``(stage, fraction, message)`` used as a family's progress callback."""
 
-    def __init__(self, enabled: bool = True, stream: TextIO | None = None, interval: float = 5.0,
-                 quiet_start: float = 2.0):
+    def __init__(
+        self, enabled: bool = True, stream: TextIO | None = None, interval: float = 5.0, quiet_start: float = 2.0
+    ):
         self.stream = stream or sys.stderr
         self.enabled = enabled
         self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
@@ -51,7 +53,7 @@ class Reporter:
             self._status.stop()
             self._status = None
 
-    def __enter__(self) -> "Reporter":
+    def __enter__(self) -> Reporter:
         return self
 
     def __exit__(self, *exc) -> None:

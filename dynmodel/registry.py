@@ -8,10 +8,11 @@ package would, in ``pyproject.toml``::
 
 The core never imports a plugin by name; it only asks this module.
 """
+
 from __future__ import annotations
 
 import difflib
-from functools import lru_cache
+from functools import cache
 from importlib.metadata import entry_points
 from typing import Any
 
@@ -25,7 +26,7 @@ DETECTORS = "dynmodel.detectors"
 _KIND = {FAMILIES: "model family", SOURCES: "data generator", SYSTEMS: "test system", DETECTORS: "diagnosis detector"}
 
 
-@lru_cache(maxsize=None)
+@cache
 def _load_group(group: str) -> dict[str, Any]:
     loaded: dict[str, Any] = {}
     for ep in sorted(entry_points(group=group), key=lambda e: e.name):
@@ -36,7 +37,8 @@ def _load_group(group: str) -> dict[str, Any]:
         except Exception as exc:  # a broken third-party plugin must not break the tool
             raise DynmodelError(
                 f"the {_KIND[group]} plugin '{ep.name}' ({ep.value}) failed to import: {exc}",
-                fix="reinstall or uninstall the package that provides it") from exc
+                fix="reinstall or uninstall the package that provides it",
+            ) from exc
         if getattr(obj, "name", ep.name) != ep.name:
             obj.name = ep.name
         loaded[ep.name] = obj

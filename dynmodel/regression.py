@@ -10,6 +10,7 @@
 All functions take a feature matrix F (N, K) and targets Y (N, q) and return a
 :class:`LinearFit` whose prediction is ``F @ coef + intercept``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -46,13 +47,13 @@ def qr_reduce(A: np.ndarray, Y: np.ndarray, ones: bool = False) -> tuple[np.ndar
     rows = max(2 * K, _CHUNK_ELEMENTS // (K + q))
     acc = np.zeros((0, K + q))
     for start in range(0, A.shape[0], rows):
-        a = A[start:start + rows]
+        a = A[start : start + rows]
         block = np.empty((acc.shape[0] + a.shape[0], K + q))
-        block[:acc.shape[0]] = acc
-        block[acc.shape[0]:, :A.shape[1]] = a
+        block[: acc.shape[0]] = acc
+        block[acc.shape[0] :, : A.shape[1]] = a
         if ones:
-            block[acc.shape[0]:, A.shape[1]] = 1.0
-        block[acc.shape[0]:, K:] = Y[start:start + rows]
+            block[acc.shape[0] :, A.shape[1]] = 1.0
+        block[acc.shape[0] :, K:] = Y[start : start + rows]
         acc = np.linalg.qr(block, mode="r")
     if acc.shape[0] < K:  # fewer rows than columns
         acc = np.vstack([acc, np.zeros((K - acc.shape[0], acc.shape[1]))])
@@ -95,8 +96,15 @@ def ridge_path(F: np.ndarray, Y: np.ndarray, alphas=None, fit_intercept: bool = 
     return fits
 
 
-def ridge(F: np.ndarray, Y: np.ndarray, alpha: float | str = "auto", Fv: np.ndarray | None = None,
-          Yv: np.ndarray | None = None, alphas: np.ndarray | None = None, fit_intercept: bool = True) -> LinearFit:
+def ridge(
+    F: np.ndarray,
+    Y: np.ndarray,
+    alpha: float | str = "auto",
+    Fv: np.ndarray | None = None,
+    Yv: np.ndarray | None = None,
+    alphas: np.ndarray | None = None,
+    fit_intercept: bool = True,
+) -> LinearFit:
     """Minimise ||Y - F w - b||^2 + alpha ||w||^2 (intercept not penalised).
 
     ``alpha='auto'``: the factor with the lowest validation error on (Fv, Yv) from a
@@ -118,6 +126,7 @@ def ridge(F: np.ndarray, Y: np.ndarray, alpha: float | str = "auto", Fv: np.ndar
 
 
 # ---------------------------------------------------------------- Fast Orthogonal Search
+
 
 @dataclass
 class FosPath:
@@ -153,15 +162,30 @@ class _Stopper:
         self.since_best += 1
         return self.since_best >= self.patience
 
-    def path(self, order: list[int], coef_path: list[np.ndarray], Q: np.ndarray) -> "FosPath":
-        return FosPath(np.array(order, dtype=np.int64), coef_path, Q[:len(order)],
-                       np.array(self.errors) if self.errors else None, self.best_m)
+    def path(self, order: list[int], coef_path: list[np.ndarray], Q: np.ndarray) -> FosPath:
+        return FosPath(
+            np.array(order, dtype=np.int64),
+            coef_path,
+            Q[: len(order)],
+            np.array(self.errors) if self.errors else None,
+            self.best_m,
+        )
 
 
-def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ...] = (),
-               max_terms: int | None = None, threshold: float | None = None,
-               Pv: np.ndarray | None = None, yv: np.ndarray | None = None, patience: int = 1,
-               tol: float = 1e-10, ties: float = 0.0) -> FosPath:
+def fos_select(
+    G: np.ndarray,
+    c: np.ndarray,
+    yy: float,
+    *,
+    forced: tuple[int, ...] = (),
+    max_terms: int | None = None,
+    threshold: float | None = None,
+    Pv: np.ndarray | None = None,
+    yv: np.ndarray | None = None,
+    patience: int = 1,
+    tol: float = 1e-10,
+    ties: float = 0.0,
+) -> FosPath:
     """Korenberg's FOS on the Gram matrix G = P^T P of the pool P, c = P^T y, yy = y^T y.
 
     The recursion keeps, for every remaining candidate i, D~(m, j, i) (its inner products with
@@ -193,7 +217,7 @@ def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ..
     for m in range(limit):
         if m > 0:
             prev = order[-1]
-            row = G[:, prev] - alpha[m - 1, :m - 1] @ Dt[:m - 1]
+            row = G[:, prev] - alpha[m - 1, : m - 1] @ Dt[: m - 1]
             Dt[m - 1] = row
             Dmm = Dmm - row * row / D[m - 1]
             Ct = Ct - row * (Cc[m - 1] / D[m - 1])
@@ -209,8 +233,8 @@ def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ..
         Q[m] = Cc[m] ** 2 / D[m]
         order.append(i)
         # weights of the selected terms: solve A^T a = beta with A[k, j] = alpha(k, j) (A.14/A.15)
-        beta = Cc[:m + 1] / D[:m + 1]
-        A = np.eye(m + 1) + np.tril(alpha[:m + 1, :m + 1], -1)
+        beta = Cc[: m + 1] / D[: m + 1]
+        A = np.eye(m + 1) + np.tril(alpha[: m + 1, : m + 1], -1)
         coef = _solve_unit_upper(A.T, beta)
         coef_path.append(coef)
         if stopper.add(order, coef, m < len(forced)):
@@ -218,10 +242,19 @@ def fos_select(G: np.ndarray, c: np.ndarray, yy: float, *, forced: tuple[int, ..
     return stopper.path(order, coef_path, Q)
 
 
-def fos_select_qr(R: np.ndarray, z: np.ndarray, yy: float, *, forced: tuple[int, ...] = (),
-                  max_terms: int | None = None, threshold: float | None = None,
-                  Pv: np.ndarray | None = None, yv: np.ndarray | None = None, patience: int = 1,
-                  tol: float = 1e-24) -> FosPath:
+def fos_select_qr(
+    R: np.ndarray,
+    z: np.ndarray,
+    yy: float,
+    *,
+    forced: tuple[int, ...] = (),
+    max_terms: int | None = None,
+    threshold: float | None = None,
+    Pv: np.ndarray | None = None,
+    yv: np.ndarray | None = None,
+    patience: int = 1,
+    tol: float = 1e-24,
+) -> FosPath:
     """FOS with the same selection rule as :func:`fos_select`, numerically stable.
 
     The pool P (N, K) enters through its QR reduction: the columns of R (K, K) are the pool
@@ -260,16 +293,17 @@ def fos_select_qr(R: np.ndarray, z: np.ndarray, yy: float, *, forced: tuple[int,
         r -= beta[m] * q
         Q[m] = beta[m] ** 2
         order.append(i)
-        U = T[:m + 1][:, order]  # upper triangular: the chosen columns = Q_sel U
-        coef = scipy.linalg.solve_triangular(U, beta[:m + 1])
+        U = T[: m + 1][:, order]  # upper triangular: the chosen columns = Q_sel U
+        coef = scipy.linalg.solve_triangular(U, beta[: m + 1])
         coef_path.append(coef)
         if stopper.add(order, coef, m < len(forced)):
             break
     return stopper.path(order, coef_path, Q)
 
 
-def _next_term(m: int, forced: tuple[int, ...], valid: np.ndarray, reduction, threshold: float | None,
-               yy: float, ties: float = 0.0) -> int | None:
+def _next_term(
+    m: int, forced: tuple[int, ...], valid: np.ndarray, reduction, threshold: float | None, yy: float, ties: float = 0.0
+) -> int | None:
     """Index of the m-th FOS term, or None to stop: the forced terms first, then the candidate with
     the largest error reduction Q = C^2 / D (appendix A.2.2), the first of the nearly best ones in pool
     order when ``ties`` > 0; stop when nothing is left or the best reduction falls below
@@ -288,13 +322,23 @@ def _next_term(m: int, forced: tuple[int, ...], valid: np.ndarray, reduction, th
 def _solve_unit_upper(U: np.ndarray, b: np.ndarray) -> np.ndarray:
     x = b.copy()
     for k in range(len(b) - 1, -1, -1):
-        x[k] -= U[k, k + 1:] @ x[k + 1:]
+        x[k] -= U[k, k + 1 :] @ x[k + 1 :]
     return x
 
 
-def fos(F: np.ndarray, Y: np.ndarray, *, Fv: np.ndarray | None = None, Yv: np.ndarray | None = None,
-        max_terms: int | None = None, threshold: float | None = None, patience: int = 1,
-        weights: str = "lstsq", fit_intercept: bool = True, method: str = "qr") -> LinearFit:
+def fos(
+    F: np.ndarray,
+    Y: np.ndarray,
+    *,
+    Fv: np.ndarray | None = None,
+    Yv: np.ndarray | None = None,
+    max_terms: int | None = None,
+    threshold: float | None = None,
+    patience: int = 1,
+    weights: str = "lstsq",
+    fit_intercept: bool = True,
+    method: str = "qr",
+) -> LinearFit:
     """FOS selection per output column, then weights for the kept terms.
 
     ``method='qr'`` (default) runs the search on the QR reduction of the pool
@@ -323,13 +367,19 @@ def fos(F: np.ndarray, Y: np.ndarray, *, Fv: np.ndarray | None = None, Yv: np.nd
     sizes = []
     for q in range(Y.shape[1]):
         y = Y[:, q]
-        common = dict(forced=forced, max_terms=max_terms, threshold=threshold, Pv=pool_v,
-                      yv=None if Yv is None else Yv[:, q], patience=patience)
+        common = dict(
+            forced=forced,
+            max_terms=max_terms,
+            threshold=threshold,
+            Pv=pool_v,
+            yv=None if Yv is None else Yv[:, q],
+            patience=patience,
+        )
         if method == "qr":
             path = fos_select_qr(R, QtY[:, q], float(y @ y), **common)
         else:
             path = fos_select(G, pool.T @ y, float(y @ y), **common)
-        kept = path.order[:path.best]
+        kept = path.order[: path.best]
         if weights == "recursion":
             w = path.coef_path[path.best - 1] if path.best else np.zeros(0)
         else:

@@ -3,6 +3,7 @@
 A generator produces one input/output recording of ``n`` samples from its validated
 parameters and a ``numpy.random.Generator``; the same parameters and seed give the same data.
 """
+
 from __future__ import annotations
 
 from typing import ClassVar

@@ -6,17 +6,28 @@ union keyed on ``family`` whose ``params`` are validated by the family's own pyd
 Both unions are built from the installed plugins, so ``dynmodel schema`` shows every
 family's and generator's parameters. Unknown keys are rejected everywhere.
 """
+
 from __future__ import annotations
 
 import difflib
 import json
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origin
 
 import yaml
-from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PrivateAttr, Tag,
-                      ValidationError, create_model, field_validator, model_validator)
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    PrivateAttr,
+    Tag,
+    ValidationError,
+    create_model,
+    field_validator,
+    model_validator,
+)
 
 from . import registry
 from .errors import SpecError
@@ -33,7 +44,9 @@ class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
 
-SplitBound = Union[Annotated[float, Field(gt=0.0, le=1.0)], tuple[Annotated[int, Field(ge=0)], Annotated[int, Field(ge=0)]]]
+SplitBound = Union[
+    Annotated[float, Field(gt=0.0, le=1.0)], tuple[Annotated[int, Field(ge=0)], Annotated[int, Field(ge=0)]]
+]
 
 
 class SplitSpec(StrictModel):
@@ -48,7 +61,7 @@ class SplitSpec(StrictModel):
     test: Optional[SplitBound] = None
 
     @model_validator(mode="after")
-    def _consistent(self) -> "SplitSpec":
+    def _consistent(self) -> SplitSpec:
         given = {k: v for k, v in self.items()}
         if not given:
             raise ValueError("give at least the train part, e.g. {train: 0.7, validation: 0.3}")
@@ -82,20 +95,32 @@ class NoiseSpec(StrictModel):
 
 
 class FileSourceFields(StrictModel):
-    path: Union[str, list[str]] = Field(description="CSV/TXT (header row), NPZ, HDF5 or MATLAB .mat; a list means several recordings")
-    input: list[Union[str, int]] = Field(min_length=1, description="input columns (CSV header names, NPZ keys, HDF5 dataset paths, MAT variables; 'name[j]' picks column j)")
+    path: Union[str, list[str]] = Field(
+        description="CSV/TXT (header row), NPZ, HDF5 or MATLAB .mat; a list means several recordings"
+    )
+    input: list[Union[str, int]] = Field(
+        min_length=1,
+        description="input columns (CSV header names, NPZ keys, HDF5 dataset paths, MAT variables; 'name[j]' picks column j)",
+    )
     output: list[Union[str, int]] = Field(min_length=1, description="output columns")
     header: bool = Field(True, description="text files: first row holds the column names")
     columns: Optional[list[str]] = Field(None, description="names for the columns of a headerless text file")
     delimiter: Optional[str] = Field(None, description="text files: field separator (detected when omitted)")
-    segments: Optional[list[tuple[int, int]]] = Field(None, description="several recordings inside one file, as [start, stop) sample ranges")
+    segments: Optional[list[tuple[int, int]]] = Field(
+        None, description="several recordings inside one file, as [start, stop) sample ranges"
+    )
     sampling_time: Optional[float] = Field(None, gt=0, description="seconds per sample (default 1)")
     time_column: Optional[Union[str, int]] = Field(
-        None, description="column of time stamps; without resample the stamps must be uniform and give the sampling time")
+        None,
+        description="column of time stamps; without resample the stamps must be uniform and give the sampling time",
+    )
     time_unit: float = Field(1.0, gt=0, description="seconds per unit of the time column (0.001 for milliseconds)")
     resample: Optional[float] = Field(
-        None, gt=0, description="interpolate every recording linearly onto a uniform grid with this step in seconds "
-        "(for non-uniformly sampled files; needs time_column; sets the sampling time)")
+        None,
+        gt=0,
+        description="interpolate every recording linearly onto a uniform grid with this step in seconds "
+        "(for non-uniformly sampled files; needs time_column; sets the sampling time)",
+    )
 
 
 class SeparateSource(StrictModel):
@@ -139,8 +164,12 @@ class DirectionChannel(StrictModel):
     """+1 while an input moves up, -1 while it moves down (held through standstill)."""
 
     direction: str = Field(description="the input column whose direction of motion is wanted")
-    deadband: float = Field(0.0, ge=0, description="a reversal counts once the input has moved back by more than this "
-                                                   "(input units; ignores noise at the turning points)")
+    deadband: float = Field(
+        0.0,
+        ge=0,
+        description="a reversal counts once the input has moved back by more than this "
+        "(input units; ignores noise at the turning points)",
+    )
     name: Optional[str] = Field(None, description="channel name (default <input>_direction)")
 
 
@@ -153,42 +182,71 @@ class ReversalChannel(StrictModel):
 
 
 def _derived_tag(value: Any) -> str | None:
-    keys = set(value) if isinstance(value, dict) else {k for k in ("time", "direction", "since_reversal")
-                                                       if getattr(value, k, None) is not None}
+    keys = (
+        set(value)
+        if isinstance(value, dict)
+        else {k for k in ("time", "direction", "since_reversal") if getattr(value, k, None) is not None}
+    )
     for key in ("time", "direction", "since_reversal"):
         if key in keys:
             return key
     return None
 
 
-DerivedInput = Annotated[Union[Annotated[TimeChannel, Tag("time")], Annotated[DirectionChannel, Tag("direction")],
-                               Annotated[ReversalChannel, Tag("since_reversal")]],
-                         Discriminator(_derived_tag, custom_error_type="derived_input",
-                                       custom_error_message="write {time: linear}, {time: {saturating: TAU}}, "
-                                       "{direction: INPUT} or {since_reversal: INPUT}")]
+DerivedInput = Annotated[
+    Union[
+        Annotated[TimeChannel, Tag("time")],
+        Annotated[DirectionChannel, Tag("direction")],
+        Annotated[ReversalChannel, Tag("since_reversal")],
+    ],
+    Discriminator(
+        _derived_tag,
+        custom_error_type="derived_input",
+        custom_error_message="write {time: linear}, {time: {saturating: TAU}}, "
+        "{direction: INPUT} or {since_reversal: INPUT}",
+    ),
+]
 
 
 class DataCommon(StrictModel):
-    split: Optional[SplitSpec] = Field(None, description="default {train: 0.6, validation: 0.2, test: 0.2}; without test when a separate test source is given")
+    split: Optional[SplitSpec] = Field(
+        None,
+        description="default {train: 0.6, validation: 0.2, test: 0.2}; without test when a separate test source is given",
+    )
     validation: Optional[SeparateSource] = Field(None, description="a separate validation recording")
     test: Optional[SeparateSource] = Field(None, description="a separate test recording")
-    transient: int = Field(0, ge=0, description="samples excluded from fitting and scoring at the start of each split segment")
+    transient: int = Field(
+        0, ge=0, description="samples excluded from fitting and scoring at the start of each split segment"
+    )
     transient_at: Literal["segment", "recording"] = Field(
-        "segment", description="segment: the transient is cut at the start of every split segment; recording: only "
-        "where a recording starts (and the state restarts), so a segment continuing a run keeps all its samples")
-    delay_lines: list[Annotated[int, Field(gt=0)]] = Field(default_factory=list, description="extra copies of every input delayed by these numbers of samples (external memory, thesis 6.3.2)")
+        "segment",
+        description="segment: the transient is cut at the start of every split segment; recording: only "
+        "where a recording starts (and the state restarts), so a segment continuing a run keeps all its samples",
+    )
+    delay_lines: list[Annotated[int, Field(gt=0)]] = Field(
+        default_factory=list,
+        description="extra copies of every input delayed by these numbers of samples (external memory, thesis 6.3.2)",
+    )
     derived_inputs: list[DerivedInput] = Field(
-        default_factory=list, description="extra model inputs computed from each recording: functions of the time "
+        default_factory=list,
+        description="extra model inputs computed from each recording: functions of the time "
         "since its start ({time: linear}, {time: {saturating: TAU}}: drift terms), the direction of motion of an input "
-        "({direction: u}) and its change since the last reversal ({since_reversal: u}); appended after the delay lines")
+        "({direction: u}) and its change since the last reversal ({since_reversal: u}); appended after the delay lines",
+    )
     detrend: list[TimeFunction] = Field(
-        default_factory=list, description="remove a trend from the output before fitting: least squares of the training "
-        "outputs on these functions of time (e.g. [linear, {saturating: 30}]); predictions get the trend back")
+        default_factory=list,
+        description="remove a trend from the output before fitting: least squares of the training "
+        "outputs on these functions of time (e.g. [linear, {saturating: 30}]); predictions get the trend back",
+    )
     delay_form: Literal["copy", "difference"] = Field(
-        "copy", description="copy: the delay lines hold u(t - d) (named u@d); difference: u(t) - u(t - d), scaled to "
-        "unit std on the training split (named u~d; invariant to the level of u, e.g. where a position lies)")
+        "copy",
+        description="copy: the delay lines hold u(t - d) (named u@d); difference: u(t) - u(t - d), scaled to "
+        "unit std on the training split (named u~d; invariant to the level of u, e.g. where a position lies)",
+    )
     noise: Optional[NoiseSpec] = None
-    scaling: Literal["standard", "none"] = Field("standard", description="standard: zero mean, unit std per channel from the training split")
+    scaling: Literal["standard", "none"] = Field(
+        "standard", description="standard: zero mean, unit std per channel from the training split"
+    )
 
 
 class FileData(DataCommon, FileSourceFields):
@@ -199,8 +257,9 @@ class EvaluationSpec(StrictModel):
     """Metrics on free-running predictions started at each recording's first sample (thesis 6.2.2)."""
 
     metrics: list[Literal["nmse", "max", "rmse", "fit"]] = Field(
-        default_factory=lambda: ["nmse", "max"], description="nmse (%), max (in output stds), rmse (output units), "
-        "fit (%: 100 (1 - rmse / std))")
+        default_factory=lambda: ["nmse", "max"],
+        description="nmse (%), max (in output stds), rmse (output units), fit (%: 100 (1 - rmse / std))",
+    )
     one_step: bool = Field(True, description="also report the one-step NMSE where the family distinguishes it")
 
     @field_validator("metrics")
@@ -246,7 +305,7 @@ def _model_spec_model(name: str, fam: Any) -> type[BaseModel]:
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def spec_model() -> type[BaseModel]:
     """The Spec pydantic model for the installed plugins."""
     fams = registry.families()
@@ -258,8 +317,11 @@ def spec_model() -> type[BaseModel]:
     model_variants = [_model_spec_model(n, f) for n, f in fams.items()]
     if not model_variants:
         raise SpecError("no model family is installed", fix="pip install -e . in the dynmodel folder")
-    ModelSpec = (Annotated[Union[tuple(model_variants)], Field(discriminator="family")]
-                 if len(model_variants) > 1 else model_variants[0])
+    ModelSpec = (
+        Annotated[Union[tuple(model_variants)], Field(discriminator="family")]
+        if len(model_variants) > 1
+        else model_variants[0]
+    )
 
     class Spec(StrictModel):
         """A dynmodel experiment: data, model family, cost, evaluation."""
@@ -267,7 +329,9 @@ def spec_model() -> type[BaseModel]:
         name: str = Field("model", description="experiment name, used for the default output file")
         data: DataSpec  # type: ignore[valid-type]
         model: ModelSpec  # type: ignore[valid-type]
-        cost: Literal["mse1", "mse_inf"] = Field("mse1", description="mse1: one-step error; mse_inf: free-running error")
+        cost: Literal["mse1", "mse_inf"] = Field(
+            "mse1", description="mse1: one-step error; mse_inf: free-running error"
+        )
         evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec)
         seed: int = Field(0, ge=0, description="seed of every random choice in fitting (networks, noise)")
         output: Optional[str] = Field(None, description="model file (HDF5); default <name>.h5 next to the spec")
@@ -306,6 +370,7 @@ def spec_model() -> type[BaseModel]:
 
 
 # ---------------------------------------------------------------- error formatting
+
 
 def _unwrap(tp: Any) -> Any:
     while get_origin(tp) is Annotated:
@@ -386,7 +451,7 @@ def validation_summary(exc: Exception) -> str:
     loc = _dotted(tuple(p for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-"))))
     msg = "unknown key" if e["type"] == "extra_forbidden" else e["msg"]
     if msg.startswith("Value error, "):
-        msg = msg[len("Value error, "):]
+        msg = msg[len("Value error, ") :]
     return f"{loc}: {msg}" if loc else msg
 
 
@@ -414,11 +479,12 @@ def format_validation_error(err: ValidationError, source: str) -> SpecError:
         shown = shown[:57] + "..."
     msg = e["msg"]
     if msg.startswith("Value error, "):
-        msg = msg[len("Value error, "):]
+        msg = msg[len("Value error, ") :]
     return SpecError(f"{msg} (got {shown})", where, "correct this value (see `dynmodel schema`)")
 
 
 # ---------------------------------------------------------------- loading
+
 
 class _UniqueKeyLoader(yaml.SafeLoader):
     """SafeLoader that rejects duplicate keys instead of silently keeping the last one."""
@@ -431,7 +497,8 @@ def _construct_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bo
         if key in seen:
             mark = key_node.start_mark
             raise yaml.constructor.ConstructorError(
-                None, None, f"duplicate key '{key}' (first at line {seen[key] + 1})", mark)
+                None, None, f"duplicate key '{key}' (first at line {seen[key] + 1})", mark
+            )
         seen[key] = key_node.start_mark.line
     return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
 
@@ -446,13 +513,17 @@ def parse_yaml(text: str, source: str) -> dict[str, Any]:
         mark = getattr(exc, "problem_mark", None)
         where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise SpecError(f"malformed YAML: {problem}", where,
-                        "check indentation, colons and brackets on that line") from None
+        raise SpecError(
+            f"malformed YAML: {problem}", where, "check indentation, colons and brackets on that line"
+        ) from None
     if raw is None:
         raise SpecError("the spec is empty", source, "write at least data: and model: sections")
     if not isinstance(raw, dict):
-        raise SpecError(f"the spec must be a mapping of keys, not a {type(raw).__name__}", source,
-                        "start with 'name:', 'data:', 'model:' lines")
+        raise SpecError(
+            f"the spec must be a mapping of keys, not a {type(raw).__name__}",
+            source,
+            "start with 'name:', 'data:', 'model:' lines",
+        )
     return raw
 
 
@@ -465,24 +536,31 @@ def _precheck_plugins(raw: dict[str, Any], source: str) -> None:
             what, fix = registry.unknown_name_message("family", str(model["family"]), known)
             raise SpecError(what, f"{source}: model.family", fix)
     data = raw.get("data")
-    for section, where in [(data, "data"), ((data or {}).get("test") if isinstance(data, dict) else None, "data.test"),
-                           ((data or {}).get("validation") if isinstance(data, dict) else None, "data.validation")]:
+    for section, where in [
+        (data, "data"),
+        ((data or {}).get("test") if isinstance(data, dict) else None, "data.test"),
+        ((data or {}).get("validation") if isinstance(data, dict) else None, "data.validation"),
+    ]:
         if isinstance(section, dict) and section.get("generator") is not None:
             known = sorted(registry.sources())
             if section["generator"] not in known:
                 what, fix = registry.unknown_name_message("generator", str(section["generator"]), known)
                 raise SpecError(what, f"{source}: {where}.generator", fix)
     if isinstance(data, dict) and "path" in data and "generator" in data:
-        raise SpecError("give either 'path' (measured data) or 'generator', not both", f"{source}: data",
-                        "remove one of them")
+        raise SpecError(
+            "give either 'path' (measured data) or 'generator', not both", f"{source}: data", "remove one of them"
+        )
 
 
 def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | None = None):
     """Validate a spec mapping; raises SpecError with one line on the first problem."""
     _precheck_plugins(raw, source)
     if isinstance(raw.get("data"), dict) and not ({"path", "generator"} & set(raw["data"])):
-        raise SpecError("data needs either 'path' (a measured-data file) or 'generator' (a built-in system)",
-                        f"{source}: data", "add 'path: file.csv' with input/output columns, or 'generator: narx-system'")
+        raise SpecError(
+            "data needs either 'path' (a measured-data file) or 'generator' (a built-in system)",
+            f"{source}: data",
+            "add 'path: file.csv' with input/output columns, or 'generator: narx-system'",
+        )
     try:
         spec = spec_model().model_validate(raw)
     except ValidationError as err:

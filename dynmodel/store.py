@@ -13,6 +13,7 @@ Layout (``format_version`` 1)::
 The file is written to a temporary name in the target folder and renamed, so a crash never
 leaves a half-written model behind.
 """
+
 from __future__ import annotations
 
 import json
@@ -132,29 +133,45 @@ def load(path: str | Path) -> FittedModel:
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
-        raise ModelFileError(f"not a readable HDF5 model file ({str(exc).split('(')[0].strip()})", str(path),
-                             "the file is truncated or not written by dynmodel; refit with `dynmodel fit`") from None
+        raise ModelFileError(
+            f"not a readable HDF5 model file ({str(exc).split('(')[0].strip()})",
+            str(path),
+            "the file is truncated or not written by dynmodel; refit with `dynmodel fit`",
+        ) from None
     try:
         with f:
             if f.attrs.get("format") != FORMAT:
-                raise ModelFileError("not a dynmodel model file (no format='dynmodel-model' attribute)", str(path),
-                                     "pass a file written by `dynmodel fit`")
+                raise ModelFileError(
+                    "not a dynmodel model file (no format='dynmodel-model' attribute)",
+                    str(path),
+                    "pass a file written by `dynmodel fit`",
+                )
             version = int(f.attrs.get("format_version", -1))
             if version > FORMAT_VERSION:
-                raise ModelFileError(f"written by a newer dynmodel (format version {version}, this version reads "
-                                     f"up to {FORMAT_VERSION})", str(path), "upgrade dynmodel: pip install -U dynmodel")
+                raise ModelFileError(
+                    f"written by a newer dynmodel (format version {version}, this version reads "
+                    f"up to {FORMAT_VERSION})",
+                    str(path),
+                    "upgrade dynmodel: pip install -U dynmodel",
+                )
             if version < 1:
                 raise ModelFileError(f"unknown format version {version}", str(path), "refit the model")
             for group in _REQUIRED:
                 if group not in f:
-                    raise ModelFileError(f"the '/{group}' entry is missing", str(path),
-                                         "the file is incomplete; refit with `dynmodel fit`")
+                    raise ModelFileError(
+                        f"the '/{group}' entry is missing",
+                        str(path),
+                        "the file is incomplete; refit with `dynmodel fit`",
+                    )
             spec = json.loads(f["spec"][()])
             family_name = str(f.attrs["family"])
             family_cls = registry.families().get(family_name)
             if family_cls is None:
-                raise ModelFileError(f"the model needs the family plugin '{family_name}', which is not installed",
-                                     str(path), "install the package that provides it")
+                raise ModelFileError(
+                    f"the model needs the family plugin '{family_name}', which is not installed",
+                    str(path),
+                    "install the package that provides it",
+                )
             arrays = {k: np.asarray(v[()]) for k, v in f["params"].items()}
             attrs = _read_attrs(f["params"])
             family = family_cls.from_arrays(spec["model"]["params"], arrays, attrs)
@@ -173,6 +190,7 @@ def load(path: str | Path) -> FittedModel:
     except ModelFileError:
         raise
     except (OSError, KeyError, ValueError, TypeError, json.JSONDecodeError) as exc:
-        raise ModelFileError(f"corrupt model file ({type(exc).__name__}: {exc})", str(path),
-                             "refit with `dynmodel fit`") from None
+        raise ModelFileError(
+            f"corrupt model file ({type(exc).__name__}: {exc})", str(path), "refit with `dynmodel fit`"
+        ) from None
     return FittedModel(family, pre, bounds, spec, metrics, provenance, train_input, lengths, train_output)

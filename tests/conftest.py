@@ -1,4 +1,5 @@
 """Shared helpers: in-process CLI runs, small generated data files, spec building."""
+
 from __future__ import annotations
 
 import os
@@ -52,18 +53,46 @@ def make_spec(raw: dict[str, Any], base: Path | None = None):
     return validate_spec(raw, "<test>", base)
 
 
-def narx_spec(mode: str = "internal", seed: int = 0, cost: str = "mse1", n: int = 10000, test_n: int = 10000,
-              transient: int = 1000, noise: float | None = None, split: dict | None = None,
-              scaling: str = "none", **params) -> dict[str, Any]:
+def narx_spec(
+    mode: str = "internal",
+    seed: int = 0,
+    cost: str = "mse1",
+    n: int = 10000,
+    test_n: int = 10000,
+    transient: int = 1000,
+    noise: float | None = None,
+    split: dict | None = None,
+    scaling: str = "none",
+    **params,
+) -> dict[str, Any]:
     """The thesis 5.3.2 task: narx-system, separate test realization, 1000-sample transient."""
-    data: dict[str, Any] = {"generator": "narx-system", "n": n, "seed": 1, "split": split or {"train": 1.0},
-                            "test": {"seed": 2, "n": test_n}, "transient": transient, "scaling": scaling}
+    data: dict[str, Any] = {
+        "generator": "narx-system",
+        "n": n,
+        "seed": 1,
+        "split": split or {"train": 1.0},
+        "test": {"seed": 2, "n": test_n},
+        "transient": transient,
+        "scaling": scaling,
+    }
     if noise is not None:
         data["noise"] = {"std": noise, "splits": ["train", "validation"]}
-    model_params = {"size": 200, "mode": mode, "connectivity": 0.01, "input_connectivity": 0.1,
-                    "bias_connectivity": 0.8, "scale": {"by": "singular", "value": 0.95}, **params}
-    return {"name": "narx", "data": data, "model": {"family": "esn", "params": model_params},
-            "cost": cost, "seed": seed}
+    model_params = {
+        "size": 200,
+        "mode": mode,
+        "connectivity": 0.01,
+        "input_connectivity": 0.1,
+        "bias_connectivity": 0.8,
+        "scale": {"by": "singular", "value": 0.95},
+        **params,
+    }
+    return {
+        "name": "narx",
+        "data": data,
+        "model": {"family": "esn", "params": model_params},
+        "cost": cost,
+        "seed": seed,
+    }
 
 
 @pytest.fixture

@@ -6,16 +6,17 @@ position signal with reversals driving a spring-damper with Dahl friction (the p
 hysteresis of thesis 6.1/6.2), all written here in plain numpy so the tests do not depend on
 the generators under test.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
-from scipy import signal
-
 from conftest import write_csv
+from scipy import signal
 
 SPLIT = {"train": 0.6, "validation": 0.2, "test": 0.2}
 
@@ -83,8 +84,14 @@ class Case:
     def spec(self, folder: Path) -> dict[str, Any]:
         path = write_csv(folder / f"{self.cause}.csv", self.columns)
         names = list(self.columns)
-        data = {"path": str(path), "input": names[:-1], "output": names[-1:], "split": dict(SPLIT),
-                "sampling_time": self.sampling_time, **self.data}
+        data = {
+            "path": str(path),
+            "input": names[:-1],
+            "output": names[-1:],
+            "split": dict(SPLIT),
+            "sampling_time": self.sampling_time,
+            **self.data,
+        }
         return {"name": self.cause, "data": data, "model": self.model, "cost": self.cost, "seed": 0}
 
 
@@ -99,8 +106,13 @@ def missing_delay(seed: int, n: int = 6000) -> Case:
     u = rng.standard_normal(n)
     y = narx_system(u)
     y[lag:] += gain * u[:-lag]
-    return Case("missing-delay", {"u": u, "y": y}, {"family": "narx", "params": {"degree": 2}},
-                {"lag": lag, "gain": gain}, sampling_time=0.002)
+    return Case(
+        "missing-delay",
+        {"u": u, "y": y},
+        {"family": "narx", "params": {"degree": 2}},
+        {"lag": lag, "gain": gain},
+        sampling_time=0.002,
+    )
 
 
 def sensor_drift(seed: int, n: int = 6000) -> Case:
@@ -138,7 +150,7 @@ def instability(seed: int, n: int = 6000) -> Case:
     for lo, hi in ((0.62, 0.74), (0.82, 0.94)):
         start = int(rng.integers(int(lo * n), int(hi * n)))
         width = int(rng.integers(150, 250))
-        u[start:start + width] *= amp
+        u[start : start + width] *= amp
         windows.append([start, start + width])
     y = saturating_system(u)
     model = {"family": "narx", "params": {"degree": 5, "drop_unstable": False, "max_terms": 10, "patience": None}}
@@ -153,8 +165,7 @@ def direction(seed: int, n: int = 6000) -> Case:
     v = np.gradient(x)
     force = 1.0 * x + 40.0 * v + dahl(x, sigma, fc)
     force += 0.01 * rng.standard_normal(n)
-    return Case("direction-dependence", {"x": x, "force": force}, FIR_X, {"fc": fc, "sigma": sigma},
-                sampling_time=0.01)
+    return Case("direction-dependence", {"x": x, "force": force}, FIR_X, {"fc": fc, "sigma": sigma}, sampling_time=0.01)
 
 
 def oscillation(seed: int, n: int = 6000) -> Case:
@@ -171,8 +182,7 @@ def oscillation(seed: int, n: int = 6000) -> Case:
     y += 0.01 * y.std() * rng.standard_normal(n)
     model = {"family": "narx", "params": {"lags": {"u": [0, 1, 2], "y": [1]}, "degree": 2}}
     st = 0.001
-    return Case("unmodeled-oscillation", {"u": u, "y": y}, model, {"frequency_hz": peak / st},
-                sampling_time=st)
+    return Case("unmodeled-oscillation", {"u": u, "y": y}, model, {"frequency_hz": peak / st}, sampling_time=st)
 
 
 def static_nonlinearity(seed: int, n: int = 6000) -> Case:
@@ -186,7 +196,7 @@ def static_nonlinearity(seed: int, n: int = 6000) -> Case:
 
 def _fir(u: np.ndarray) -> np.ndarray:
     u1, u2 = np.r_[0.0, u[:-1]], np.r_[0.0, 0.0, u[:-2]]
-    return u + 0.5 * u1 - 0.3 * u2 ** 2 + 0.2 * u * u1
+    return u + 0.5 * u1 - 0.3 * u2**2 + 0.2 * u * u1
 
 
 def insufficient_memory(seed: int, n: int = 6000) -> Case:
@@ -204,8 +214,10 @@ def unreliable(seed: int, n: int = 4000) -> Case:
     u = rng.standard_normal(n)
     y = narx_system(u)
     value = float(rng.uniform(1.6, 2.2))
-    model = {"family": "esn", "params": {"size": 60, "connectivity": 0.2, "bias_scale": 0.0,
-                                         "scale": {"by": "spectral", "value": value}}}
+    model = {
+        "family": "esn",
+        "params": {"size": 60, "connectivity": 0.2, "bias_scale": 0.0, "scale": {"by": "spectral", "value": value}},
+    }
     return Case("unreliable-model", {"u": u, "y": y}, model, {"spectral_radius": value})
 
 
@@ -249,19 +261,42 @@ def dahl_generator_spec(seed: int, n: int = 10000) -> tuple[dict[str, Any], dict
     sees the position only through its last three samples (narx without output lags). Returns (spec, truth)."""
     rng = np.random.default_rng(seed)
     fc = float(rng.uniform(10.0, 30.0))
-    params = {"coulomb": fc, "sigma": 1e7, "position_unit": "um",
-              "trajectory": {"kind": "multisine", "std": 1e-5, "period": 8.0, "band": [0.1, 1.0]}}
-    spec = {"name": "dahl", "data": {"generator": "dahl", "n": n, "seed": seed, "params": params, "split": dict(SPLIT),
-                                     "noise": {"std": 0.01, "splits": ["train", "validation", "test"]}},
-            "model": FIR_X | {"params": {"lags": {"position": [0, 1, 2]}, "degree": 2}}, "seed": 0}
+    params = {
+        "coulomb": fc,
+        "sigma": 1e7,
+        "position_unit": "um",
+        "trajectory": {"kind": "multisine", "std": 1e-5, "period": 8.0, "band": [0.1, 1.0]},
+    }
+    spec = {
+        "name": "dahl",
+        "data": {
+            "generator": "dahl",
+            "n": n,
+            "seed": seed,
+            "params": params,
+            "split": dict(SPLIT),
+            "noise": {"std": 0.01, "splits": ["train", "validation", "test"]},
+        },
+        "model": FIR_X | {"params": {"lags": {"position": [0, 1, 2]}, "degree": 2}},
+        "seed": 0,
+    }
     return spec, {"coulomb": fc}
 
 
 HIDDEN: dict[str, Callable[[int], Case]] = {
-    "sensor-drift": sensor_drift, "missing-delay": missing_delay, "noise-bias": noise_bias,
-    "free-run-instability": instability, "direction-dependence": direction,
-    "unmodeled-oscillation": oscillation, "static-nonlinearity": static_nonlinearity,
-    "insufficient-memory": insufficient_memory, "unreliable-model": unreliable,
+    "sensor-drift": sensor_drift,
+    "missing-delay": missing_delay,
+    "noise-bias": noise_bias,
+    "free-run-instability": instability,
+    "direction-dependence": direction,
+    "unmodeled-oscillation": oscillation,
+    "static-nonlinearity": static_nonlinearity,
+    "insufficient-memory": insufficient_memory,
+    "unreliable-model": unreliable,
 }
-CLEAN: dict[str, Callable[[int], Case]] = {"narx-system": clean_narx, "spring-damper": clean_friction,
-                                            "noisy-linear": clean_noisy_linear, "esn": clean_esn}
+CLEAN: dict[str, Callable[[int], Case]] = {
+    "narx-system": clean_narx,
+    "spring-damper": clean_friction,
+    "noisy-linear": clean_noisy_linear,
+    "esn": clean_esn,
+}

@@ -1,10 +1,12 @@
 """Simulated annealing (core) and the `annealed-rnn` family (thesis 5.3.4, 6.4.5)."""
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 import pytest
+from conftest import ROOT, make_spec, narx
 
 import dynmodel
 from dynmodel import engine
@@ -13,18 +15,18 @@ from dynmodel.spec import load_spec
 from dynmodel_plugins.annealed_rnn import AnnealedRnnParams
 from dynmodel_plugins.annealed_rnn.search import NetState, grow, make_moves
 
-from conftest import ROOT, make_spec, narx
-
-
 # ------------------------------------------------------------------ the optimizer
+
 
 def test_worse_candidates_are_accepted_with_probability_exp_delta_over_t():
     """Every move makes the objective 10 % worse; at constant T = 0.05 the acceptance rate is exp(-2)."""
+
     def worse(state, rng, scale):
         return state * 1.1
 
-    result = anneal(1.0, 1.0, lambda s: s, [("worse", 1.0, worse)], Schedule(6000, 0.05, 0.05),
-                    np.random.default_rng(1))
+    result = anneal(
+        1.0, 1.0, lambda s: s, [("worse", 1.0, worse)], Schedule(6000, 0.05, 0.05), np.random.default_rng(1)
+    )
     rate = result.accepted / 6000
     assert abs(rate - math.exp(-0.1 / 0.05)) < 0.015  # delta = (old - new) / old = -0.1
     assert result.best_score == 1.0  # the best is kept while the current state wanders
@@ -32,8 +34,15 @@ def test_worse_candidates_are_accepted_with_probability_exp_delta_over_t():
 
 def test_cooling_reaches_the_final_temperature_and_better_is_always_accepted():
     seen = []
-    result = anneal(10.0, 10.0, lambda s: s, [("better", 1.0, lambda s, r, k: s * 0.99)], Schedule(50, 0.2, 2e-4),
-                    np.random.default_rng(0), on_step=lambda step, T, cur, best, info: seen.append(T))
+    result = anneal(
+        10.0,
+        10.0,
+        lambda s: s,
+        [("better", 1.0, lambda s, r, k: s * 0.99)],
+        Schedule(50, 0.2, 2e-4),
+        np.random.default_rng(0),
+        on_step=lambda step, T, cur, best, info: seen.append(T),
+    )
     assert seen[0] == pytest.approx(0.2) and seen[-1] == pytest.approx(2e-4)
     assert result.accepted == 50 and result.best_score == pytest.approx(10 * 0.99**50)
     assert relative_improvement(2.0, 1.0) == 0.5 and relative_improvement(1.0, math.inf) == -math.inf
@@ -42,6 +51,7 @@ def test_cooling_reaches_the_final_temperature_and_better_is_always_accepted():
 def test_annealing_escapes_local_minima_that_trap_greedy_descent():
     """1 + Rastrigin in 2-D from (3, -3): accepting worse steps early finds deeper minima than a
     greedy search (the same moves at a temperature too low to accept anything worse)."""
+
     def f(x):
         return float(21 + np.sum(x**2 - 10 * np.cos(2 * np.pi * x)))
 
@@ -51,7 +61,9 @@ def test_annealing_escapes_local_minima_that_trap_greedy_descent():
     x0 = np.array([3.0, -3.0])
 
     def best(t0, t_end, seed):
-        return anneal(x0, f(x0), f, [("step", 1.0, step)], Schedule(3000, t0, t_end), np.random.default_rng(seed)).best_score
+        return anneal(
+            x0, f(x0), f, [("step", 1.0, step)], Schedule(3000, t0, t_end), np.random.default_rng(seed)
+        ).best_score
 
     annealed = [best(0.3, 1e-3, s) for s in range(10)]
     greedy = [best(1e-6, 1e-9, s) for s in range(10)]
@@ -68,17 +80,25 @@ def test_interruption_returns_the_best_so_far():
             raise KeyboardInterrupt
         return s
 
-    result = anneal(5.0, 5.0, objective, [("down", 1.0, lambda s, r, k: s - 0.1)], Schedule(100), np.random.default_rng(0))
+    result = anneal(
+        5.0, 5.0, objective, [("down", 1.0, lambda s, r, k: s - 0.1)], Schedule(100), np.random.default_rng(0)
+    )
     assert result.interrupted and result.best == pytest.approx(5.0 - 0.1 * 29)
 
 
 # ------------------------------------------------------------------ moves and growth
 
+
 def _state(rng, m=20):
     C = np.where(rng.random((m, m)) < 0.2, rng.standard_normal((m, m)), 0.0)
     C *= 0.9 / np.linalg.norm(C, 2)
-    return NetState(C, np.where(rng.random((m, 1)) < 0.5, 1.0, 0.0), np.zeros((m, 0)), rng.standard_normal(m),
-                    rng.uniform(0, 0.9, m))
+    return NetState(
+        C,
+        np.where(rng.random((m, 1)) < 0.5, 1.0, 0.0),
+        np.zeros((m, 0)),
+        rng.standard_normal(m),
+        rng.uniform(0, 0.9, m),
+    )
 
 
 def test_moves_change_the_structure_as_named_and_keep_sigma_below_the_bound():
@@ -110,10 +130,22 @@ def test_growth_appends_elements_and_keeps_the_old_network():
 
 # ------------------------------------------------------------------ the family
 
+
 def _raw(steps=60, **params):
-    return {"data": {"generator": "narx-system", "n": 4000, "seed": 1, "split": {"train": 0.75, "validation": 0.25},
-                     "test": {"seed": 2, "n": 2000}, "transient": 300, "transient_at": "recording", "scaling": "none"},
-            "model": {"family": "annealed-rnn", "params": {"size": 20, "steps": steps, **params}}, "seed": 0}
+    return {
+        "data": {
+            "generator": "narx-system",
+            "n": 4000,
+            "seed": 1,
+            "split": {"train": 0.75, "validation": 0.25},
+            "test": {"seed": 2, "n": 2000},
+            "transient": 300,
+            "transient_at": "recording",
+            "scaling": "none",
+        },
+        "model": {"family": "annealed-rnn", "params": {"size": 20, "steps": steps, **params}},
+        "seed": 0,
+    }
 
 
 def test_annealing_improves_on_its_random_start_and_is_reproducible(tmp_path):
@@ -173,6 +205,7 @@ def test_external_mode_and_a_validation_split_is_required():
 
 # ------------------------------------------------------------------ thesis reproductions
 
+
 def _test_nmse(spec_file, seeds, **params):
     out = []
     for seed in seeds:
@@ -188,8 +221,10 @@ def _test_nmse(spec_file, seeds, **params):
 def test_thesis_5_3_4_optimized_60_beat_random_400():
     annealed = _test_nmse("thesis-5.3.4-annealed.yaml", range(8))
     random400 = _test_nmse("thesis-5.3.4-random-esn.yaml", range(16))
-    print(f"\nannealed 60: median {np.median(annealed):.4g} IQR {np.percentile(annealed, [25, 75])}; "
-          f"random 400: median {np.median(random400):.4g} IQR {np.percentile(random400, [25, 75])}")
+    print(
+        f"\nannealed 60: median {np.median(annealed):.4g} IQR {np.percentile(annealed, [25, 75])}; "
+        f"random 400: median {np.median(random400):.4g} IQR {np.percentile(random400, [25, 75])}"
+    )
     assert np.median(annealed) < np.median(random400)
     assert np.percentile(annealed, 75) < np.percentile(random400, 25)  # the whole middle halves are apart
 

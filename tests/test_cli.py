@@ -1,4 +1,5 @@
 """The command line: the README flow, and one clear line (no traceback) for every bad input."""
+
 from __future__ import annotations
 
 import json
@@ -8,10 +9,9 @@ import h5py
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT, narx, narx_spec, write_csv, write_yaml
 
 import dynmodel
-
-from conftest import ROOT, narx, narx_spec, write_csv, write_yaml
 
 
 @pytest.fixture
@@ -42,7 +42,7 @@ def test_fit_predict_inspect_round_trip(cli, tmp_path, quick_spec):
     assert r.exit_code == 0, r.stderr
     pred = np.loadtxt(tmp_path / "pred.csv", delimiter=",", skiprows=1)
     model = dynmodel.load(report["model"])
-    np.testing.assert_allclose(pred[:, 1], model.predict(u, y_tune=y[:model.warmup])[:, 0], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(pred[:, 1], model.predict(u, y_tune=y[: model.warmup])[:, 0], rtol=1e-9, atol=1e-12)
     assert (tmp_path / "pred.csv").read_text().splitlines()[0] == "t,y"
 
     r = cli("inspect", report["model"], "--json", tmp_path / "inspect.json")
@@ -98,15 +98,27 @@ def test_rmse_and_fit_metrics(cli, tmp_path):
 
 def test_fit_notes_a_test_input_beyond_the_training_range(cli, tmp_path, narx_csvs):
     train, test = narx_csvs
-    spec = {"data": {"path": str(train), "input": ["u"], "output": ["y"], "split": {"train": 0.8, "validation": 0.2},
-                     "test": {"path": str(test)}}, "model": {"family": "narx"}, "output": str(tmp_path / "m.h5")}
+    spec = {
+        "data": {
+            "path": str(train),
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 0.8, "validation": 0.2},
+            "test": {"path": str(test)},
+        },
+        "model": {"family": "narx"},
+        "output": str(tmp_path / "m.h5"),
+    }
     r = cli("fit", write_yaml(tmp_path / "s.yaml", spec), "-q")
     assert r.exit_code == 0 and "extrapolates" not in r.stdout  # the same uniform input on both files
     u, y = np.loadtxt(test, delimiter=",", skiprows=1, unpack=True)
     u[1500] = 2 * u.max()  # one sample twice as far out as anything in training
     write_csv(test, {"u": u, "y": y})
     r = cli("fit", tmp_path / "s.yaml", "-q")
-    assert "note: the test input 'u' leaves the training range by" in r.stdout and "sample 1500 of 'test:test.csv'" in r.stdout
+    assert (
+        "note: the test input 'u' leaves the training range by" in r.stdout
+        and "sample 1500 of 'test:test.csv'" in r.stdout
+    )
 
 
 def test_generate_reports_invalid_parameters_on_one_line(cli, tmp_path):
@@ -116,6 +128,7 @@ def test_generate_reports_invalid_parameters_on_one_line(cli, tmp_path):
 
 
 # ------------------------------------------------------------------------------ bad input
+
 
 def _one_line_error(r, code: int = 2) -> str:
     assert r.exit_code == code, (r.exit_code, r.stdout, r.stderr)
@@ -139,10 +152,13 @@ def test_unknown_key(cli, tmp_path):
     assert "unknown key 'transcient'" in line and "did you mean 'transient'" in line
 
 
-@pytest.mark.parametrize("where, value, expected", [
-    ("family", "narxx", "unknown family 'narxx'"),
-    ("generator", "narx", "unknown generator 'narx'"),
-])
+@pytest.mark.parametrize(
+    "where, value, expected",
+    [
+        ("family", "narxx", "unknown family 'narxx'"),
+        ("generator", "narx", "unknown generator 'narx'"),
+    ],
+)
 def test_unknown_family_or_generator(cli, tmp_path, where, value, expected):
     spec = narx_spec()
     if where == "family":
@@ -179,8 +195,9 @@ def test_series_too_short_for_split_and_transient(cli, tmp_path):
 
 def test_diverging_free_run_names_the_sample(cli, tmp_path):
     # plain least squares on every state, no tune-in: the fed-back output explodes at once
-    spec = narx_spec(mode="external", n=3000, test_n=1000, transient=200, tune_in=0,
-                     readout={"solver": "lstsq", "direct": False})
+    spec = narx_spec(
+        mode="external", n=3000, test_n=1000, transient=200, tune_in=0, readout={"solver": "lstsq", "direct": False}
+    )
     spec["output"] = str(tmp_path / "div.h5")
     r = cli("fit", write_yaml(tmp_path / "s.yaml", spec), "--json", tmp_path / "div.json", "-q")
     line = _one_line_error(r, code=1)

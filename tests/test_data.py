@@ -1,16 +1,16 @@
 """Data sources, splits, transient, noise, delay lines, scaling and the family's view."""
+
 from __future__ import annotations
 
 import h5py
 import numpy as np
 import pytest
 import scipy.io
+from conftest import make_spec, narx, narx_spec, write_csv
 
 from dynmodel.data import Preprocessor, delayed_copies, delayed_differences, load_dataset, training_data
 from dynmodel.data.readers import read_columns
 from dynmodel.errors import DataError
-
-from conftest import make_spec, narx, narx_spec, write_csv
 
 
 def _file_spec(path, **data):
@@ -32,7 +32,11 @@ def test_every_format_reads_the_same_columns(tmp_path, columns):
             f.create_dataset(f"g/{k}", data=v)
     scipy.io.savemat(tmp_path / "d.mat", {k: v[:, None] for k, v in columns.items()})
     ref = read_columns(csv, ["u", "y"])
-    for path, sel in [(tmp_path / "d.npz", ["u", "y"]), (tmp_path / "d.h5", ["g/u", "g/y"]), (tmp_path / "d.mat", ["u", "y"])]:
+    for path, sel in [
+        (tmp_path / "d.npz", ["u", "y"]),
+        (tmp_path / "d.h5", ["g/u", "g/y"]),
+        (tmp_path / "d.mat", ["u", "y"]),
+    ]:
         got = read_columns(path, sel)
         np.testing.assert_array_equal(got[sel[0]], ref["u"])
         np.testing.assert_array_equal(got[sel[1]], ref["y"])
@@ -98,7 +102,11 @@ def test_fraction_and_range_splits_with_transient():
     raw = narx_spec(n=2000, split={"train": [0, 800], "validation": [800, 1000], "test": [1000, 2000]}, transient=50)
     raw["data"].pop("test")
     ds = load_dataset(make_spec(raw))
-    assert [ds.scored(s) for s in ("train", "validation", "test")] == [[(0, 50, 800)], [(0, 850, 1000)], [(0, 1050, 2000)]]
+    assert [ds.scored(s) for s in ("train", "validation", "test")] == [
+        [(0, 50, 800)],
+        [(0, 850, 1000)],
+        [(0, 1050, 2000)],
+    ]
 
 
 def test_too_little_data_for_the_split_or_the_transient():
@@ -149,8 +157,11 @@ def test_difference_form_is_level_invariant_scaled_and_stored(tmp_path):
     v = pre.inputs(u)
     train = v[:2100]
     assert np.allclose(train[:, 1:].std(axis=0), 1.0, atol=1e-12)
-    np.testing.assert_allclose(v[:, 2] * pre.difference_scale[1] * pre.input_scale[0],
-                               u[:, 0] - np.concatenate([np.full(50, u[0, 0]), u[:-50, 0]]), atol=1e-12)
+    np.testing.assert_allclose(
+        v[:, 2] * pre.difference_scale[1] * pre.input_scale[0],
+        u[:, 0] - np.concatenate([np.full(50, u[0, 0]), u[:-50, 0]]),
+        atol=1e-12,
+    )
     np.testing.assert_allclose(pre.inputs(u + 7.0)[:, 1:], v[:, 1:], atol=1e-9)
     from dynmodel import engine, store
 
@@ -164,8 +175,12 @@ def test_difference_form_is_level_invariant_scaled_and_stored(tmp_path):
 
 
 def test_scaling_uses_training_statistics_and_hides_test_outputs():
-    raw = narx_spec(n=3000, split={"train": [0, 1000], "test": [1000, 2000], "validation": [2000, 3000]},
-                    transient=0, scaling="standard")
+    raw = narx_spec(
+        n=3000,
+        split={"train": [0, 1000], "test": [1000, 2000], "validation": [2000, 3000]},
+        transient=0,
+        scaling="standard",
+    )
     raw["data"].pop("test")
     raw["data"]["delay_lines"] = [3]
     ds = load_dataset(make_spec(raw))
@@ -183,8 +198,16 @@ def test_several_recordings_keep_their_own_starts(tmp_path):
     u2, y2 = narx(2000, 2)
     write_csv(tmp_path / "a.csv", {"u": u1, "y": y1})
     write_csv(tmp_path / "b.csv", {"u": u2, "y": y2})
-    raw = {"data": {"path": ["a.csv", "b.csv"], "input": ["u"], "output": ["y"], "split": {"train": 0.5, "validation": 0.5},
-                    "transient": 100}, "model": {"family": "esn"}}
+    raw = {
+        "data": {
+            "path": ["a.csv", "b.csv"],
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 0.5, "validation": 0.5},
+            "transient": 100,
+        },
+        "model": {"family": "esn"},
+    }
     ds = load_dataset(make_spec(raw, tmp_path))
     assert [r.name for r in ds.recordings] == ["a.csv", "b.csv"]
     assert ds.scored("train") == [(0, 100, 1500), (1, 100, 1000)]
@@ -211,8 +234,9 @@ def test_inputs_beyond_the_training_range_are_named_with_split_sample_and_excess
     u = np.sin(np.linspace(0, 20, 1000))[:, None]
     u[900] = 1.5  # the test split goes half the training width (2) beyond its top (1)
     rec = Recording("r.csv", u, np.zeros((1000, 1)))
-    ds = Dataset([rec], {"train": [(0, 0, 600)], "validation": [(0, 600, 800)], "test": [(0, 800, 1000)]}, 0,
-                 ["u"], ["y"], 1.0)
+    ds = Dataset(
+        [rec], {"train": [(0, 0, 600)], "validation": [(0, 600, 800)], "test": [(0, 800, 1000)]}, 0, ["u"], ["y"], 1.0
+    )
     found = ds.input_excursions()
     assert len(found) == 1 and found[0]["split"] == "test" and found[0]["sample"] == 900
     assert found[0]["excess"] == pytest.approx(0.25, abs=0.01)  # 0.5 over a training width of about 2

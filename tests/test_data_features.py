@@ -1,17 +1,17 @@
 """Data-layer features the diagnosis needs and any spec can use: derived input channels (time
 functions, direction of motion, travel since the last reversal), detrending, and resampling of
 non-uniformly sampled files."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import make_spec, write_csv, write_yaml
 
 import dynmodel
 from dynmodel.data import load_dataset
 from dynmodel.data.derived import channel_name, reversals, time_matrix
 from dynmodel.errors import DataError, SpecError
-
-from conftest import make_spec, write_csv, write_yaml
 
 
 def test_reversals_of_a_triangle_with_noise_and_a_deadband():
@@ -42,8 +42,10 @@ def _friction_csv(tmp_path, n=3000, drift=0.0):
 
 def test_direction_input_lets_a_static_model_fit_coulomb_friction(tmp_path):
     path = _friction_csv(tmp_path)
-    raw = {"data": {"path": str(path), "input": ["x"], "output": ["force"]},
-           "model": {"family": "narx", "params": {"lags": {"x": [0]}, "degree": 1}}}
+    raw = {
+        "data": {"path": str(path), "input": ["x"], "output": ["force"]},
+        "model": {"family": "narx", "params": {"lags": {"x": [0]}, "degree": 1}},
+    }
     plain = dynmodel.fit(make_spec(raw, tmp_path))
     raw["data"]["derived_inputs"] = [{"direction": "x"}]
     raw["model"]["params"]["lags"]["x_direction"] = [0]
@@ -54,9 +56,16 @@ def test_direction_input_lets_a_static_model_fit_coulomb_friction(tmp_path):
 
 def test_detrending_adds_the_trend_back_and_survives_the_model_file(tmp_path):
     path = _friction_csv(tmp_path, drift=3.0)
-    raw = {"data": {"path": str(path), "input": ["x"], "output": ["force"], "detrend": ["linear"],
-                    "derived_inputs": [{"direction": "x"}, {"time": {"saturating": 500.0}}]},
-           "model": {"family": "narx", "params": {"lags": {"x": [0], "x_direction": [0]}, "degree": 1}}}
+    raw = {
+        "data": {
+            "path": str(path),
+            "input": ["x"],
+            "output": ["force"],
+            "detrend": ["linear"],
+            "derived_inputs": [{"direction": "x"}, {"time": {"saturating": 500.0}}],
+        },
+        "model": {"family": "narx", "params": {"lags": {"x": [0], "x_direction": [0]}, "degree": 1}},
+    }
     model = dynmodel.fit(make_spec(raw, tmp_path))
     assert model.preprocessor.trend_coef[0, 0] == pytest.approx(3.0 / 3000, rel=0.05)
     assert model.metrics["test"]["nmse"] < 0.1  # scored against the measured, trending output
@@ -69,17 +78,27 @@ def test_detrending_adds_the_trend_back_and_survives_the_model_file(tmp_path):
 
 def test_time_inputs_model_a_drift(tmp_path):
     path = _friction_csv(tmp_path, drift=3.0)
-    raw = {"data": {"path": str(path), "input": ["x"], "output": ["force"],
-                    "derived_inputs": [{"direction": "x"}, {"time": "linear"}]},
-           "model": {"family": "narx", "params": {"lags": {"x": [0], "x_direction": [0], "time_linear": [0]},
-                                                  "degree": 1}}}
+    raw = {
+        "data": {
+            "path": str(path),
+            "input": ["x"],
+            "output": ["force"],
+            "derived_inputs": [{"direction": "x"}, {"time": "linear"}],
+        },
+        "model": {
+            "family": "narx",
+            "params": {"lags": {"x": [0], "x_direction": [0], "time_linear": [0]}, "degree": 1},
+        },
+    }
     assert dynmodel.fit(make_spec(raw, tmp_path)).metrics["test"]["nmse"] < 0.1
 
 
 def test_derived_input_errors_are_one_line(tmp_path):
     path = _friction_csv(tmp_path)
-    raw = {"data": {"path": str(path), "input": ["x"], "output": ["force"], "derived_inputs": [{"direction": "q"}]},
-           "model": {"family": "narx"}}
+    raw = {
+        "data": {"path": str(path), "input": ["x"], "output": ["force"], "derived_inputs": [{"direction": "q"}]},
+        "model": {"family": "narx"},
+    }
     with pytest.raises(dynmodel.DynmodelError, match="'q' is not an input column"):
         dynmodel.fit(make_spec(raw, tmp_path))
     raw["data"]["derived_inputs"] = [{"direction": "x", "speed": 2}]
@@ -104,9 +123,19 @@ def _stamped(tmp_path, name="rig.tsv", jitter=True, n=400):
 
 def test_resampling_a_non_uniform_headerless_file(tmp_path):
     path, t = _stamped(tmp_path)
-    raw = {"data": {"path": str(path), "header": False, "columns": ["t_ms", "u", "y"], "time_column": "t_ms",
-                    "time_unit": 0.001, "resample": 0.01, "input": ["u"], "output": ["y"]},
-           "model": {"family": "narx"}}
+    raw = {
+        "data": {
+            "path": str(path),
+            "header": False,
+            "columns": ["t_ms", "u", "y"],
+            "time_column": "t_ms",
+            "time_unit": 0.001,
+            "resample": 0.01,
+            "input": ["u"],
+            "output": ["y"],
+        },
+        "model": {"family": "narx"},
+    }
     with pytest.warns(UserWarning, match="gap"):
         ds = load_dataset(make_spec(raw, tmp_path))
     assert ds.sampling_time == 0.01
@@ -119,8 +148,18 @@ def test_resampling_a_non_uniform_headerless_file(tmp_path):
 
 def test_time_column_checks(tmp_path):
     path, _ = _stamped(tmp_path)
-    raw = {"data": {"path": str(path), "header": False, "columns": ["t_ms", "u", "y"], "time_column": "t_ms",
-                    "time_unit": 0.001, "input": ["u"], "output": ["y"]}, "model": {"family": "narx"}}
+    raw = {
+        "data": {
+            "path": str(path),
+            "header": False,
+            "columns": ["t_ms", "u", "y"],
+            "time_column": "t_ms",
+            "time_unit": 0.001,
+            "input": ["u"],
+            "output": ["y"],
+        },
+        "model": {"family": "narx"},
+    }
     with pytest.raises(DataError, match="not uniform.*Fix: add 'resample: 0.0099"):
         load_dataset(make_spec(raw, tmp_path))
     uniform, _ = _stamped(tmp_path, "u.tsv", jitter=False)
@@ -141,8 +180,21 @@ def test_time_column_checks(tmp_path):
 
 def test_validate_cli_shows_the_resampled_data(cli, tmp_path):
     path, _ = _stamped(tmp_path)
-    spec = write_yaml(tmp_path / "s.yaml", {"data": {
-        "path": path.name, "header": False, "columns": ["t_ms", "u", "y"], "time_column": "t_ms", "time_unit": 0.001,
-        "resample": 0.01, "input": ["u"], "output": ["y"]}, "model": {"family": "narx"}})
+    spec = write_yaml(
+        tmp_path / "s.yaml",
+        {
+            "data": {
+                "path": path.name,
+                "header": False,
+                "columns": ["t_ms", "u", "y"],
+                "time_column": "t_ms",
+                "time_unit": 0.001,
+                "resample": 0.01,
+                "input": ["u"],
+                "output": ["y"],
+            },
+            "model": {"family": "narx"},
+        },
+    )
     r = cli("validate", spec)
     assert r.exit_code == 0 and "sampling time 0.01" in r.stdout

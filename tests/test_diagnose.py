@@ -1,6 +1,7 @@
 """dynmodel diagnose: every built-in cause hidden in data is named first, with the right evidence and a
 clear gain from its extension; clean data with an adequate model names nothing; the CLI writes a
 report, a runnable extended spec and the JSON summary."""
+
 from __future__ import annotations
 
 import json
@@ -8,21 +9,28 @@ import json
 import numpy as np
 import pytest
 import yaml
+from conftest import write_yaml
+from hidden_effects import CLEAN, HIDDEN, Case, dahl_generator_spec, missing_delay, narx_system
 
 from dynmodel import registry
 from dynmodel.diagnose import Detector, Settings, diagnose
 from dynmodel.diagnose.fitting import Fitter
 from dynmodel.diagnose.runner import detect
 
-from conftest import write_yaml
-from hidden_effects import CLEAN, HIDDEN, Case, dahl_generator_spec, missing_delay, narx_system
-
 SEEDS = (7, 2024)  # each case draws its strength, lag, frequency, ... from its seed
 
 #: the test NMSE reduction the named cause's extension must reach
-MARGIN = {"sensor-drift": 0.5, "missing-delay": 0.8, "noise-bias": 0.8, "free-run-instability": None,
-          "direction-dependence": 0.5, "unmodeled-oscillation": 0.8, "static-nonlinearity": 0.3,
-          "insufficient-memory": 0.8, "unreliable-model": 0.5}
+MARGIN = {
+    "sensor-drift": 0.5,
+    "missing-delay": 0.8,
+    "noise-bias": 0.8,
+    "free-run-instability": None,
+    "direction-dependence": 0.5,
+    "unmodeled-oscillation": 0.8,
+    "static-nonlinearity": 0.3,
+    "insufficient-memory": 0.8,
+    "unreliable-model": 0.5,
+}
 
 
 def _evidence_ok(cause: str, case: Case, ev: dict) -> None:
@@ -144,17 +152,32 @@ def test_cli_writes_report_json_and_a_runnable_extended_spec(cli, tmp_path, dela
     summary = json.loads((tmp_path / "d.json").read_text())
     assert list(summary) == ["baseline", "findings", "extended", "gain"]
     assert summary["findings"][0]["cause"] == "missing-delay"
-    assert set(summary["gain"]) >= {"test_nmse_before", "test_nmse_after", "relative_reduction",
-                                    "test_max_before", "test_max_after", "uncertainty"}
+    assert set(summary["gain"]) >= {
+        "test_nmse_before",
+        "test_nmse_after",
+        "relative_reduction",
+        "test_max_before",
+        "test_max_after",
+        "uncertainty",
+    }
     rep = tmp_path / "rep"
-    for name in ("index.md", "fit.png", "residual.png", "correlation.png", "spectrum.png", "loops.png",
-                 "before_after.png", "extended.yaml"):
+    for name in (
+        "index.md",
+        "fit.png",
+        "residual.png",
+        "correlation.png",
+        "spectrum.png",
+        "loops.png",
+        "before_after.png",
+        "extended.yaml",
+    ):
         assert (rep / name).stat().st_size > 500, name
     index = (rep / "index.md").read_text()
     assert "Named cause: `missing-delay`" in index and "](correlation.png)" in index
     extended = yaml.safe_load((rep / "extended.yaml").read_text())
-    assert extended == json.loads(json.dumps(summary["extended"]["spec"] | {"name": extended["name"],
-                                                                            "output": extended["output"]}))
+    assert extended == json.loads(
+        json.dumps(summary["extended"]["spec"] | {"name": extended["name"], "output": extended["output"]})
+    )
     r = cli("fit", rep / "extended.yaml", "--json", tmp_path / "fit.json", "-q")
     assert r.exit_code == 0, r.stderr
     refit = json.loads((tmp_path / "fit.json").read_text())
@@ -176,7 +199,9 @@ def test_cli_adequate_model_proposes_nothing(cli, tmp_path):
 
 
 def test_cli_errors_are_one_line(cli, tmp_path):
-    bad = write_yaml(tmp_path / "bad.yaml", {"data": {"generator": "narx-system", "n": 2000}, "model": {"family": "nax"}})
+    bad = write_yaml(
+        tmp_path / "bad.yaml", {"data": {"generator": "narx-system", "n": 2000}, "model": {"family": "nax"}}
+    )
     r = cli("diagnose", bad)
     assert r.exit_code == 2 and "did you mean 'narx'" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     r = cli("diagnose", tmp_path / "missing.yaml")
@@ -208,9 +233,13 @@ def test_default_narx_that_loses_track_on_gms_friction_is_repaired_by_free_run_s
     One-step FOS keeps only force[t-1], force[t-2] (one-step NMSE about 1e-3 %), whose free run ignores
     the input (NMSE about 100 %). The diagnosis names free-run-instability and the structure selected on
     the free-running error brings the test NMSE below 20 %."""
-    spec = {"name": "gms", "data": {"generator": "gms", "n": 12000, "seed": 0,
-                                    "split": {"train": 0.6, "validation": 0.2, "test": 0.2}},
-            "model": {"family": "narx"}, "cost": "mse_inf", "seed": 0}
+    spec = {
+        "name": "gms",
+        "data": {"generator": "gms", "n": 12000, "seed": 0, "split": {"train": 0.6, "validation": 0.2, "test": 0.2}},
+        "model": {"family": "narx"},
+        "cost": "mse_inf",
+        "seed": 0,
+    }
     result = diagnose(spec, "<test>", tmp_path, Settings())
     assert result.baseline.nmse("test") > 90.0
     assert result.verdict == "free-run-instability"

@@ -1,16 +1,16 @@
 """dynmodel diagnose on real friction data: the pneumatic seal rig (non-uniformly sampled, headerless
 text) and EMPS (MATLAB files). The data live in ../shared/data next to the repository; the tests
 skip when that folder is absent. The figures quoted in the README come from these runs."""
+
 from __future__ import annotations
 
 import json
 
 import pytest
+from conftest import ROOT, SHARED_DATA
 
 from dynmodel.diagnose import Settings, diagnose
 from dynmodel.spec import parse_yaml
-
-from conftest import ROOT, SHARED_DATA
 
 PNEUMATIC = SHARED_DATA / "pneumatic_seal_friction"
 EMPS = SHARED_DATA / "emps"

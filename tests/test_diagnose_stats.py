@@ -1,5 +1,6 @@
 """The statistics behind the detectors: correlation bounds, spectral peaks, the out-of-sample dependence
 test, block bootstrap, merge patches. Calibration is checked on data where the null holds."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -7,8 +8,15 @@ import pytest
 from scipy import signal
 
 from dynmodel.diagnose.bootstrap import batch_means_test, paired_nmse
-from dynmodel.diagnose.correlation import (ar_coefficients, ar_filter, autocorr, bartlett_sd, crosscorr,
-                                           integrated_time, sidak_z)
+from dynmodel.diagnose.correlation import (
+    ar_coefficients,
+    ar_filter,
+    autocorr,
+    bartlett_sd,
+    crosscorr,
+    integrated_time,
+    sidak_z,
+)
 from dynmodel.diagnose.dependence import holdout_share, partial_share
 from dynmodel.diagnose.patch import merge
 from dynmodel.diagnose.spectrum import refine_peak, welch
@@ -19,7 +27,7 @@ def test_crosscorr_pools_segments_and_never_pairs_across_them():
     a, b = rng.standard_normal(300), rng.standard_normal(300)
     r = crosscorr([a], [b], 5)
     ac, bc = a - a.mean(), b - b.mean()
-    direct = [np.mean(ac[k:] * bc[:300 - k]) / (a.std() * b.std()) for k in range(6)]
+    direct = [np.mean(ac[k:] * bc[: 300 - k]) / (a.std() * b.std()) for k in range(6)]
     np.testing.assert_allclose(r, direct, rtol=1e-10)
     # two segments: lag 3 pairs come only from inside each segment
     r2 = crosscorr([a[:150], a[150:]], [b[:150], b[150:]], 3)
@@ -84,8 +92,8 @@ def test_holdout_share_separates_dependence_from_independence():
     n = 4000
     u = rng.standard_normal(n)
     check = np.arange(n) >= 3000
-    e = 0.7 * u ** 2 + 0.5 * rng.standard_normal(n)
-    dep = holdout_share(e, u[:, None], (u ** 2)[:, None], check)
+    e = 0.7 * u**2 + 0.5 * rng.standard_normal(n)
+    dep = holdout_share(e, u[:, None], (u**2)[:, None], check)
     assert dep.p_value < 1e-4 and dep.share == pytest.approx(0.98 / (0.98 + 0.25), abs=0.05)
     # independent: p roughly uniform, so rarely small
     small = 0
@@ -93,7 +101,7 @@ def test_holdout_share_separates_dependence_from_independence():
         r = np.random.default_rng(100 + seed)
         x = r.standard_normal(n)
         e = signal.lfilter([1.0], [1.0, -0.9], r.standard_normal(n))  # slow, autocorrelated residual
-        small += holdout_share(e, x[:, None], np.column_stack([x ** 2, x ** 3]), check).p_value < 0.01
+        small += holdout_share(e, x[:, None], np.column_stack([x**2, x**3]), check).p_value < 0.01
     assert small <= 3
 
 
@@ -126,6 +134,9 @@ def test_batch_means_test_signs():
 
 def test_merge_patch_follows_rfc_7396():
     target = {"a": 1, "b": {"c": [1, 2], "d": 4}, "e": "x"}
-    assert merge(target, {"b": {"c": [3], "d": None}, "e": None, "f": {"g": 1}}) == {"a": 1, "b": {"c": [3]},
-                                                                                      "f": {"g": 1}}
+    assert merge(target, {"b": {"c": [3], "d": None}, "e": None, "f": {"g": 1}}) == {
+        "a": 1,
+        "b": {"c": [3]},
+        "f": {"g": 1},
+    }
     assert target["b"]["c"] == [1, 2]  # the target is not modified

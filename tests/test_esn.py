@@ -1,15 +1,15 @@
 """The `esn` family: structure, determinism, persistence, and the thesis 5.3.2 reproductions."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import ROOT, make_spec, narx, narx_spec, write_csv
 
 import dynmodel
 from dynmodel import engine
 from dynmodel.spec import load_spec
 from dynmodel_plugins.esn.network import largest_singular_value, spectral_radius
-
-from conftest import ROOT, make_spec, narx, narx_spec, write_csv
 
 
 def _fit(raw, base=None):
@@ -30,8 +30,9 @@ def _test_nmse(spec_path, seeds, **data_overrides):
 
 
 def test_network_of_eq_5_28_keeps_its_matrix():
-    raw = narx_spec(n=2000, test_n=500, transient=100,
-                    weights={"C": [[0.34, 2.31], [-0.56, -1.93]], "b": [1, 1], "c0": [0, 0]})
+    raw = narx_spec(
+        n=2000, test_n=500, transient=100, weights={"C": [[0.34, 2.31], [-0.56, -1.93]], "b": [1, 1], "c0": [0, 0]}
+    )
     for key in ("size", "scale"):
         raw["model"]["params"].pop(key)
     m = _fit(raw)
@@ -56,8 +57,15 @@ def test_spectral_scaling_warns_that_reliability_is_not_guaranteed():
 
 
 def test_same_seed_same_arrays_other_seed_other_network():
-    raw = narx_spec(mode="external", n=3000, test_n=1000, transient=200, cost="mse_inf", noise=0.3,
-                    split={"train": 0.8, "validation": 0.2})
+    raw = narx_spec(
+        mode="external",
+        n=3000,
+        test_n=1000,
+        transient=200,
+        cost="mse_inf",
+        noise=0.3,
+        split={"train": 0.8, "validation": 0.2},
+    )
     a, b, c = _fit(raw), _fit(raw), _fit({**raw, "seed": 1})
     arrays_a, arrays_b = a.family.to_arrays()[0], b.family.to_arrays()[0]
     for key in arrays_a:
@@ -68,13 +76,16 @@ def test_same_seed_same_arrays_other_seed_other_network():
 
 @pytest.mark.parametrize("mode", ["internal", "external"])
 def test_save_load_predict_reproduces_the_in_memory_prediction(tmp_path, mode):
-    m = _fit(narx_spec(mode=mode, n=3000, test_n=1000, transient=200, scaling="standard",
-                       split={"train": 0.7, "validation": 0.3}))
+    m = _fit(
+        narx_spec(
+            mode=mode, n=3000, test_n=1000, transient=200, scaling="standard", split={"train": 0.7, "validation": 0.3}
+        )
+    )
     u, y = narx(1500, 99)
-    before = m.predict(u, y_tune=y[:m.warmup])
+    before = m.predict(u, y_tune=y[: m.warmup])
     path = dynmodel.save(m, tmp_path / "m.h5")
     loaded = dynmodel.load(path)
-    after = loaded.predict(u, y_tune=y[:loaded.warmup])
+    after = loaded.predict(u, y_tune=y[: loaded.warmup])
     np.testing.assert_array_equal(before, after)
     assert loaded.metrics == m.metrics and loaded.spec == m.spec
     nmse = 100 * np.mean((after[200:, 0] - y[200:]) ** 2) / np.var(y[200:])
@@ -98,9 +109,17 @@ def test_multi_input_multi_output_and_several_recordings(tmp_path):
         for t in range(1, 2500):
             y2[t] = 0.6 * y2[t - 1] + 0.5 * u2[t] + 0.3 * u2[t - 1]
         paths.append(write_csv(tmp_path / f"r{k}.csv", {"u1": u1, "u2": u2, "y1": y1, "y2": 100 + 20 * y2}).name)
-    raw = {"data": {"path": paths[:2], "input": ["u1", "u2"], "output": ["y1", "y2"], "split": {"train": 0.8, "validation": 0.2},
-                    "test": {"path": paths[2]}, "transient": 100},
-           "model": {"family": "esn", "params": {"size": 150}}}
+    raw = {
+        "data": {
+            "path": paths[:2],
+            "input": ["u1", "u2"],
+            "output": ["y1", "y2"],
+            "split": {"train": 0.8, "validation": 0.2},
+            "test": {"path": paths[2]},
+            "transient": 100,
+        },
+        "model": {"family": "esn", "params": {"size": 150}},
+    }
     m = _fit(raw, tmp_path)
     test = m.metrics["test"]
     assert set(test["per_output"]) == {"y1", "y2"}
@@ -113,8 +132,10 @@ def test_delay_lines_give_memory_beyond_the_network(tmp_path):
     u = np.random.default_rng(3).standard_normal(6000)
     y = np.concatenate([np.zeros(40), u[:-40]])
     write_csv(tmp_path / "delay.csv", {"u": u, "y": y})
-    raw = {"data": {"path": "delay.csv", "input": ["u"], "output": ["y"], "transient": 100},
-           "model": {"family": "esn", "params": {"size": 30}}}
+    raw = {
+        "data": {"path": "delay.csv", "input": ["u"], "output": ["y"], "transient": 100},
+        "model": {"family": "esn", "params": {"size": 30}},
+    }
     plain = _fit(raw, tmp_path)
     raw["data"]["delay_lines"] = [40]
     delayed = _fit(raw, tmp_path)
@@ -123,6 +144,7 @@ def test_delay_lines_give_memory_beyond_the_network(tmp_path):
 
 
 # ------------------------------------------------------------------------- thesis reproductions
+
 
 @pytest.mark.slow
 def test_thesis_5_3_2_internal_and_external_approach_over_20_networks():
@@ -153,7 +175,9 @@ def test_refinement_on_noisy_training_data():
                 v = engine.fit(spec).metrics["test"]["nmse"]
                 vals.append(np.inf if v is None else v)
             table[level][cost] = np.array(vals)
-        print(f"\nnoise {level}: mse1 mean {table[level]['mse1'].mean():.4g}, mse_inf mean {table[level]['mse_inf'].mean():.4g}")
+        print(
+            f"\nnoise {level}: mse1 mean {table[level]['mse1'].mean():.4g}, mse_inf mean {table[level]['mse_inf'].mean():.4g}"
+        )
     assert table[1.0]["mse_inf"].mean() < 1.0
     for level in (0.2, 0.5, 1.0):
         assert table[level]["mse_inf"].mean() < table[level]["mse1"].mean()

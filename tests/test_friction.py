@@ -1,11 +1,13 @@
 """Friction simulators (thesis 6.1 - 6.4): analytic limits of the laws, pre-sliding memory, switching
 without chatter, the closed-loop plant, the control criteria and `dynmodel control`."""
+
 from __future__ import annotations
 
 import json
 
 import numpy as np
 import pytest
+from conftest import write_csv, write_yaml
 
 import dynmodel
 from dynmodel import control as ctl
@@ -14,8 +16,6 @@ from dynmodel_plugins.friction.plant import Plant, PlantParams, TrackingTask, si
 from dynmodel_plugins.friction.response import LawState, friction_force
 from dynmodel_plugins.friction.sources import FrictionPlant
 from dynmodel_plugins.friction.trajectories import Trajectory, TrajectoryParams
-
-from conftest import write_csv, write_yaml
 
 
 def ramp(v: float, n: int, h: float, x0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -45,11 +45,19 @@ def test_dahl_steady_state_is_the_coulomb_force(v):
 @pytest.mark.parametrize("damping", ["standard", "olsson"])
 @pytest.mark.parametrize("v", [1e-3, -4e-3, 0.02, -0.2])
 def test_lugre_steady_state_is_stribeck_plus_viscous(v, damping):
-    law = LuGreFields(sigma0=1e6, sigma1=300.0, viscous=0.4, coulomb=10.0, static=14.0, stribeck_velocity=5e-3,
-                      damping=damping, damping_velocity=2e-3)
+    law = LuGreFields(
+        sigma0=1e6,
+        sigma1=300.0,
+        viscous=0.4,
+        coulomb=10.0,
+        static=14.0,
+        stribeck_velocity=5e-3,
+        damping=damping,
+        damping_velocity=2e-3,
+    )
     x, vs = ramp(v, 40000, 1e-4)
     F = friction_force(law, x, vs, 1e-4, 1)
-    g = 10.0 + 4.0 * np.exp(-(v / 5e-3) ** 2)  # eq. 6.11
+    g = 10.0 + 4.0 * np.exp(-((v / 5e-3) ** 2))  # eq. 6.11
     assert F[-1] == pytest.approx(np.sign(v) * g + 0.4 * v, rel=1e-9)
     assert steady_force(law, v) == pytest.approx(F[-1], rel=1e-9)
 
@@ -57,18 +65,26 @@ def test_lugre_steady_state_is_stribeck_plus_viscous(v, damping):
 @pytest.mark.parametrize("v", [5e-4, -2e-3, 0.01, -0.5])
 def test_gms_total_sliding_force(v):
     """Every element ends slipping at sign(v) nu_i g(v); with sum nu_i = 1 the total is g(v) sign(v) + sigma2 v."""
-    law = GmsFields(elements=6, fractions=[0.3, 0.25, 0.2, 0.1, 0.1, 0.05], viscous=0.7, coulomb=12.0, static=15.0,
-                    stribeck_velocity=3e-3, attraction=2e3)
+    law = GmsFields(
+        elements=6,
+        fractions=[0.3, 0.25, 0.2, 0.1, 0.1, 0.05],
+        viscous=0.7,
+        coulomb=12.0,
+        static=15.0,
+        stribeck_velocity=3e-3,
+        attraction=2e3,
+    )
     x, vs = ramp(v, 60000, 1e-4)
     st = LawState(law)
     F = friction_force(law, x, vs, 1e-4, 1, st)
-    g = 12.0 + 3.0 * np.exp(-(v / 3e-3) ** 2)
+    g = 12.0 + 3.0 * np.exp(-((v / 3e-3) ** 2))
     assert F[-1] == pytest.approx(np.sign(v) * g + 0.7 * v, rel=1e-9)
     assert np.all(st.mode == np.sign(v))
 
 
-@pytest.mark.parametrize("law", [DahlFields(sigma=3e6), LuGreFields(sigma0=2e6, sigma1=0.0), GmsFields()],
-                         ids=["dahl", "lugre", "gms"])
+@pytest.mark.parametrize(
+    "law", [DahlFields(sigma=3e6), LuGreFields(sigma0=2e6, sigma1=0.0), GmsFields()], ids=["dahl", "lugre", "gms"]
+)
 def test_presliding_initial_stiffness(law):
     """From the virgin state, the first nanometre gives dF/dx = sigma, sigma0, or sum k_i."""
     x, vs = ramp(1e-6, 11, 1e-3)  # 1 nm per step, at 1 um/s (negligible viscous and Stribeck effects)
@@ -92,8 +108,8 @@ def test_gms_non_local_memory_inner_loop_returns_onto_the_outer_loop(static):
     inner = path([0.0, X, -X, a, b, X], dx)
     Fo = friction_force(law, outer, np.full(len(outer), 1e-6), h, 1)
     Fi = friction_force(law, inner, np.full(len(inner), 1e-6), h, 1)
-    up_o = Fo[-int(round((X - a) / dx)) - 1:]  # the last rise from a to X on either path
-    up_i = Fi[-int(round((X - a) / dx)) - 1:]
+    up_o = Fo[-int(round((X - a) / dx)) - 1 :]  # the last rise from a to X on either path
+    up_i = Fi[-int(round((X - a) / dx)) - 1 :]
     np.testing.assert_allclose(up_i, up_o, rtol=0, atol=1e-9 * static)
     # and inside the inner loop the force did differ (the memory is non-local, not a function of x)
     k_b = len(path([0.0, X, -X, a, b], dx)) - 1
@@ -132,8 +148,9 @@ def test_plant_steady_sliding_has_no_mode_chatter_and_tracks_with_the_expected_l
     """A long move at nearly constant speed under PD control: after the break-away no element
     switches again, and the tracking error settles at (g(v) + sigma2 v) / kp (quasi-static)."""
     law = GmsLaw(viscous=0.2)
-    params = PlantParams(kd=250.0, noise=0.0, law=law,
-                         reference={"kind": "reversals", "points": [0.0, 1.0], "speed": 0.05})
+    params = PlantParams(
+        kd=250.0, noise=0.0, law=law, reference={"kind": "reversals", "points": [0.0, 1.0], "speed": 0.05}
+    )
     plant = Plant(params)
     traj = Trajectory(params.reference, np.random.default_rng(0))
     n = 30000
@@ -150,21 +167,24 @@ def test_plant_steady_sliding_has_no_mode_chatter_and_tracks_with_the_expected_l
     assert np.sum(modes[1:] != modes[:-1]) == 10  # ten switches in all: one break-away per element
     mid = 15708  # t = 15.708 s: the peak of the half-cosine move (31.4 s long): v = 0.05 m/s, a = 0
     P = np.concatenate(pos)
-    e = ref[::2 * params.substeps][:n] - P
+    e = ref[:: 2 * params.substeps][:n] - P
     v = 0.05
     assert e[mid] * params.kp == pytest.approx(law.g(v) + 0.2 * v, rel=2e-3)
 
 
 # ----------------------------------------------------------------------------- validation
-@pytest.mark.parametrize("params, message", [
-    ({"fractions": [0.5, 0.4]}, "fractions has 2 values but elements is 10"),
-    ({"elements": 2, "fractions": [0.5, 0.4]}, "the fractions nu_i add up to 0.9; they must sum to 1 (eq. 6.14)"),
-    ({"elements": 2, "stiffness": [1e5, -1.0]}, "every stiffness k_i must be positive"),
-    ({"viscous": -0.2}, "viscous = -0.2 is negative: a negative damping feeds energy into the motion"),
-    ({"static": 0.0}, "static = 0 must be positive"),
-    ({"trajectory": {"kind": "reversals"}}, "kind reversals needs points"),
-    ({"trajectory": {"band": [2.0, 1.0]}}, "band = [2, 1] must satisfy 0 < low <= high"),
-])
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        ({"fractions": [0.5, 0.4]}, "fractions has 2 values but elements is 10"),
+        ({"elements": 2, "fractions": [0.5, 0.4]}, "the fractions nu_i add up to 0.9; they must sum to 1 (eq. 6.14)"),
+        ({"elements": 2, "stiffness": [1e5, -1.0]}, "every stiffness k_i must be positive"),
+        ({"viscous": -0.2}, "viscous = -0.2 is negative: a negative damping feeds energy into the motion"),
+        ({"static": 0.0}, "static = 0 must be positive"),
+        ({"trajectory": {"kind": "reversals"}}, "kind reversals needs points"),
+        ({"trajectory": {"band": [2.0, 1.0]}}, "band = [2, 1] must satisfy 0 < low <= high"),
+    ],
+)
 def test_parameter_errors_are_one_clear_line(cli, tmp_path, params, message):
     spec = {"data": {"generator": "gms", "params": params, "n": 100}, "model": {"family": "esn"}}
     r = cli("validate", write_yaml(tmp_path / "s.yaml", spec))
@@ -213,7 +233,7 @@ def _gms_plain(law: GmsFields, x: np.ndarray, h: float) -> np.ndarray:
     out = [F.sum()]
     for j in range(len(x) - 1):
         dx = x[j + 1] - x[j]
-        g = law.coulomb + (law.static - law.coulomb) * np.exp(-np.abs(dx / h / law.stribeck_velocity) ** 2)
+        g = law.coulomb + (law.static - law.coulomb) * np.exp(-(np.abs(dx / h / law.stribeck_velocity) ** 2))
         slip = (mode != 0) & (dx * mode > 0)
         target = mode * nu * g
         F = np.where(slip, target + (F - target) * np.exp(-law.attraction * h / (nu * g)), F)
@@ -297,18 +317,43 @@ def test_control_criteria_by_hand():
 def small_plant_model(tmp_path_factory):
     """A quickly fitted feed-forward model of a short closed-loop recording (not a good one)."""
     d = tmp_path_factory.mktemp("ctl")
-    spec = {"name": "tiny", "output": str(d / "tiny.h5"),
-            "data": {"generator": "friction-plant", "n": 6000, "seed": 1, "input": ["position"], "output": ["force"],
-                     "split": {"train": 0.8, "validation": 0.2}, "delay_lines": [50, 100]},
-            "model": {"family": "esn", "params": {"size": 50, "relaxation": [0.0, 0.95]}}}
+    spec = {
+        "name": "tiny",
+        "output": str(d / "tiny.h5"),
+        "data": {
+            "generator": "friction-plant",
+            "n": 6000,
+            "seed": 1,
+            "input": ["position"],
+            "output": ["force"],
+            "split": {"train": 0.8, "validation": 0.2},
+            "delay_lines": [50, 100],
+        },
+        "model": {"family": "esn", "params": {"size": 50, "relaxation": [0.0, 0.95]}},
+    }
     model = dynmodel.fit(dynmodel.load_spec(write_yaml(d / "tiny.yaml", spec)))
     dynmodel.save(model, d / "tiny.h5")
     return d / "tiny.h5"
 
 
 def test_cli_control_table_json_plot(cli, tmp_path, small_plant_model):
-    r = cli("control", small_plant_model, "--duration", 10, "--switch", 5, "--skip", 2, "--realizations", 2,
-            "--json", tmp_path / "c.json", "--plot", tmp_path / "c.png", "-q")
+    r = cli(
+        "control",
+        small_plant_model,
+        "--duration",
+        10,
+        "--switch",
+        5,
+        "--skip",
+        2,
+        "--realizations",
+        2,
+        "--json",
+        tmp_path / "c.json",
+        "--plot",
+        tmp_path / "c.png",
+        "-q",
+    )
     assert r.exit_code == 0, r.stderr
     for word in ("NMSE_P %", "NMSE_ff %", "MAX_P", "MAX_ff", "alpha %", "beta %", "perfect model", "friction-plant"):
         assert word in r.stdout
@@ -319,8 +364,21 @@ def test_cli_control_table_json_plot(cli, tmp_path, small_plant_model):
     assert report["perfect"]["alpha"]["mean"] > 99.9
     assert (tmp_path / "c.png").stat().st_size > 20000
     # the same seed gives the same figures
-    r2 = cli("control", small_plant_model, "--duration", 10, "--switch", 5, "--skip", 2, "--realizations", 2,
-             "--json", tmp_path / "d.json", "-q")
+    r2 = cli(
+        "control",
+        small_plant_model,
+        "--duration",
+        10,
+        "--switch",
+        5,
+        "--skip",
+        2,
+        "--realizations",
+        2,
+        "--json",
+        tmp_path / "d.json",
+        "-q",
+    )
     assert r2.exit_code == 0, r2.stderr
     again = json.loads((tmp_path / "d.json").read_text())["model"]
     for c in ctl.CRITERIA:  # equal up to summation order (numpy's SIMD reductions depend on alignment)
@@ -329,19 +387,39 @@ def test_cli_control_table_json_plot(cli, tmp_path, small_plant_model):
 
 def test_cli_control_plant_override_and_spec_file(cli, tmp_path, small_plant_model):
     plant = write_yaml(tmp_path / "plant.yaml", {"generator": "friction-plant", "params": {"noise": 0.0}})
-    r = cli("control", small_plant_model, "--plant", plant, "-p", "law.viscous=1.0", "--duration", 4, "--switch", 2,
-            "--skip", 0.5, "--realizations", 1, "--json", tmp_path / "c.json", "-q")
+    r = cli(
+        "control",
+        small_plant_model,
+        "--plant",
+        plant,
+        "-p",
+        "law.viscous=1.0",
+        "--duration",
+        4,
+        "--switch",
+        2,
+        "--skip",
+        0.5,
+        "--realizations",
+        1,
+        "--json",
+        tmp_path / "c.json",
+        "-q",
+    )
     assert r.exit_code == 0, r.stderr
     params = json.loads((tmp_path / "c.json").read_text())["plant"]["params"]
     assert params["noise"] == 0.0 and params["law"]["viscous"] == 1.0 and params["law"]["type"] == "gms"
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--hold", "cubic"], "--hold cubic is not linear or zero"),
-    (["--switch", "200"], "need 0 < skip"),
-    (["-p", "law.fractions=[1, 2]"], "fractions has 2 values but elements is 10"),
-    (["-p", "mass=-1"], "mass: Input should be greater than 0"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--hold", "cubic"], "--hold cubic is not linear or zero"),
+        (["--switch", "200"], "need 0 < skip"),
+        (["-p", "law.fractions=[1, 2]"], "fractions has 2 values but elements is 10"),
+        (["-p", "mass=-1"], "mass: Input should be greater than 0"),
+    ],
+)
 def test_cli_control_usage_errors_are_one_line(cli, small_plant_model, args, message):
     r = cli("control", small_plant_model, *args, "-q")
     assert r.exit_code == 2 and message in r.stderr and "\n" not in r.stderr.strip() and "Traceback" not in r.stderr
@@ -358,23 +436,50 @@ def test_cli_control_refuses_models_and_plants_it_cannot_use(cli, tmp_path, smal
     # a model fitted on recorded data needs --plant
     u, y = np.random.default_rng(0).standard_normal((2, 3000))
     csv = write_csv(tmp_path / "d.csv", {"position": u, "force": y})
-    spec = write_yaml(tmp_path / "f.yaml", {"data": {"path": str(csv), "input": ["position"], "output": ["force"],
-                                                     "sampling_time": 0.001},
-                                            "model": {"family": "esn", "params": {"size": 20}},
-                                            "output": str(tmp_path / "f.h5")})
+    spec = write_yaml(
+        tmp_path / "f.yaml",
+        {
+            "data": {"path": str(csv), "input": ["position"], "output": ["force"], "sampling_time": 0.001},
+            "model": {"family": "esn", "params": {"size": 20}},
+            "output": str(tmp_path / "f.h5"),
+        },
+    )
     assert cli("fit", spec, "-q").exit_code == 0
     r = cli("control", tmp_path / "f.h5")
     assert r.exit_code == 2 and "fitted on recorded data" in r.stderr and "--plant" in r.stderr
     # ... and with --plant it runs (the file model's input is called position)
     plant = write_yaml(tmp_path / "plant.yaml", {"generator": "friction-plant"})
-    r = cli("control", tmp_path / "f.h5", "--plant", plant, "--duration", 4, "--switch", 2, "--skip", 0.5,
-            "--realizations", 1, "-q")
+    r = cli(
+        "control",
+        tmp_path / "f.h5",
+        "--plant",
+        plant,
+        "--duration",
+        4,
+        "--switch",
+        2,
+        "--skip",
+        0.5,
+        "--realizations",
+        1,
+        "-q",
+    )
     assert r.exit_code == 0, r.stderr
 
 
 def test_cli_generate_plot_shows_the_hysteresis(cli, tmp_path):
-    r = cli("generate", "gms", "--n", 3000, "--out", tmp_path / "g.csv", "--plot", tmp_path / "g.png",
-            "-p", "position_unit=um")
+    r = cli(
+        "generate",
+        "gms",
+        "--n",
+        3000,
+        "--out",
+        tmp_path / "g.csv",
+        "--plot",
+        tmp_path / "g.png",
+        "-p",
+        "position_unit=um",
+    )
     assert r.exit_code == 0, r.stderr
     data = np.loadtxt(tmp_path / "g.csv", delimiter=",", skiprows=1)
     assert (tmp_path / "g.csv").read_text().splitlines()[0] == "t,position,force"
@@ -388,13 +493,37 @@ def test_cli_generate_plot_shows_the_hysteresis(cli, tmp_path):
 
 
 def test_cli_control_tunes_external_models_in_on_the_p_controlled_force(cli, tmp_path):
-    spec = {"name": "ext", "output": str(tmp_path / "ext.h5"), "cost": "mse_inf",
-            "data": {"generator": "friction-plant", "n": 6000, "seed": 1, "input": ["position"], "output": ["force"],
-                     "split": {"train": 0.8, "validation": 0.2}, "delay_lines": [50, 100]},
-            "model": {"family": "esn", "params": {"size": 50, "mode": "external", "tune_in": 20}}}
+    spec = {
+        "name": "ext",
+        "output": str(tmp_path / "ext.h5"),
+        "cost": "mse_inf",
+        "data": {
+            "generator": "friction-plant",
+            "n": 6000,
+            "seed": 1,
+            "input": ["position"],
+            "output": ["force"],
+            "split": {"train": 0.8, "validation": 0.2},
+            "delay_lines": [50, 100],
+        },
+        "model": {"family": "esn", "params": {"size": 50, "mode": "external", "tune_in": 20}},
+    }
     assert cli("fit", write_yaml(tmp_path / "ext.yaml", spec), "-q").exit_code == 0
-    r = cli("control", tmp_path / "ext.h5", "--duration", 6, "--switch", 3, "--skip", 1, "--realizations", 2,
-            "--json", tmp_path / "c.json", "-q")
+    r = cli(
+        "control",
+        tmp_path / "ext.h5",
+        "--duration",
+        6,
+        "--switch",
+        3,
+        "--skip",
+        1,
+        "--realizations",
+        2,
+        "--json",
+        tmp_path / "c.json",
+        "-q",
+    )
     assert r.exit_code == 0, r.stderr
     assert "tunes in on its first 20 outputs" in r.stdout
     assert len(json.loads((tmp_path / "c.json").read_text())["realizations"]) == 2

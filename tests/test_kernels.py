@@ -1,4 +1,5 @@
 """Compiled kernels agree with plain numpy recurrences."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -8,8 +9,13 @@ from dynmodel.kernels import drive, free_run, step_batch, tanh_vec
 
 
 def test_fast_tanh_matches_numpy_to_a_few_ulp():
-    x = np.concatenate([np.linspace(-30, 30, 600001), np.random.default_rng(0).standard_normal(100000) * 1e-4,
-                        [0.0, -0.0, 1e-300, -5e-324, 19.5, -19.5, 20.0]])
+    x = np.concatenate(
+        [
+            np.linspace(-30, 30, 600001),
+            np.random.default_rng(0).standard_normal(100000) * 1e-4,
+            [0.0, -0.0, 1e-300, -5e-324, 19.5, -19.5, 20.0],
+        ]
+    )
     out = np.empty_like(x)
     tanh_vec(x, out)
     ref = np.tanh(x)
@@ -76,14 +82,27 @@ def test_free_run_with_tune_in_equals_numpy_loop():
     U, Y = rng.standard_normal((300, 2)), rng.standard_normal((300, 1))
     W, D, w0 = 0.05 * rng.standard_normal((1, 40)), 0.1 * rng.standard_normal((1, 3)), np.array([0.2])
     for tune in (0, 25):
-        _, yhat, fb, div = free_run(*_args(C, B, c0, a, g), U, Y, tune, 0.0, W, D, w0, np.array([0.1]),
-                                    np.array([-1e9]), np.array([1e9]), np.zeros(40), False)
+        _, yhat, fb, div = free_run(
+            *_args(C, B, c0, a, g),
+            U,
+            Y,
+            tune,
+            0.0,
+            W,
+            D,
+            w0,
+            np.array([0.1]),
+            np.array([-1e9]),
+            np.array([1e9]),
+            np.zeros(40),
+            False,
+        )
         ref = _numpy_free_run(C, B, c0, a, g, U, Y, tune, W, D, w0, np.array([0.1]))
         assert div == -1
         np.testing.assert_allclose(yhat, ref, atol=1e-12)
         if tune:
-            np.testing.assert_array_equal(fb[1:tune + 1], Y[:tune])
-            np.testing.assert_array_equal(fb[tune + 1:], yhat[tune:-1])
+            np.testing.assert_array_equal(fb[1 : tune + 1], Y[:tune])
+            np.testing.assert_array_equal(fb[tune + 1 :], yhat[tune:-1])
 
 
 def test_free_run_reports_the_sample_where_it_leaves_the_band():
@@ -91,8 +110,21 @@ def test_free_run_reports_the_sample_where_it_leaves_the_band():
     U = np.ones((200, 1))
     W = np.full((1, 40), 0.0)
     D = np.array([[0.0, 1.05]])  # yhat_t = 1.05 yhat_{t-1} + 1: grows geometrically
-    _, yhat, _, div = free_run(*_args(C, B, c0, a, g), U, np.zeros((0, 1)), 0, 0.0, W, D, np.array([1.0]),
-                               np.array([0.0]), np.array([-50.0]), np.array([50.0]), np.zeros(40), False)
+    _, yhat, _, div = free_run(
+        *_args(C, B, c0, a, g),
+        U,
+        np.zeros((0, 1)),
+        0,
+        0.0,
+        W,
+        D,
+        np.array([1.0]),
+        np.array([0.0]),
+        np.array([-50.0]),
+        np.array([50.0]),
+        np.zeros(40),
+        False,
+    )
     k = int(np.ceil(np.log(1 + 50 * 0.05) / np.log(1.05)))  # first t with sum_{j<=t} 1.05^j > 50
     assert div == k - 1 or div == k
     assert np.isnan(yhat[div:]).all() and np.isfinite(yhat[:div]).all()

@@ -1,8 +1,10 @@
 """The `lorenz-net` family: driven Lorenz elements (eq. 4.52), networks (4.58 / 4.59), annealing."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import ROOT, make_spec
 from scipy.integrate import solve_ivp
 
 import dynmodel
@@ -11,8 +13,6 @@ from dynmodel.spec import load_spec
 from dynmodel_plugins.lorenz_net.elements import descendants, integrate_element, simulate_network, step_elements
 from dynmodel_plugins.lorenz_net.params import LorenzNetParams
 from dynmodel_plugins.lorenz_net.search import initial_state, make_moves
-
-from conftest import ROOT, make_spec
 
 
 def test_element_integration_matches_an_adaptive_solver():
@@ -23,8 +23,10 @@ def test_element_integration_matches_an_adaptive_solver():
     assert integrate_element(s, r, b, a, v, 0.1, 20, np.zeros(3), out) == -1
     x, ref = np.zeros(3), []
     for t in range(150):  # zero-order hold of the drive over each interval
+
         def rhs(_, x, vt=v[t]):
             return [a * s * (vt - x[0]), a * (r * x[0] - x[1] - x[0] * x[2]), a * (x[0] * x[1] - b * x[2])]
+
         x = solve_ivp(rhs, (0, 0.1), x, rtol=1e-11, atol=1e-12).y[:, -1]
         ref.append(x)
     np.testing.assert_allclose(out, ref, atol=1e-6)
@@ -52,7 +54,7 @@ def test_batched_step_equals_the_network_simulation():
     assert bad == -1
     state, out = np.zeros((1, 10, 3)), np.empty((1, 10, 3))
     for t in range(80):
-        step_elements(st.params, st.C, st.B, state, U[t:t + 1], 0.1, 3, out)
+        step_elements(st.params, st.C, st.B, state, U[t : t + 1], 0.1, 3, out)
         state, out = out, state
         np.testing.assert_allclose(state[0], X[t], atol=1e-12)
 
@@ -104,10 +106,23 @@ def test_cached_trajectories_equal_a_full_recomputation():
 
 
 def _raw(strategy="feed-forward", steps=40, **params):
-    return {"data": {"generator": "rossler-cross", "n": 3000, "seed": 1, "split": {"train": [0, 2000], "validation": [2000, 3000]},
-                     "test": {"seed": 2, "n": 2000}, "transient": 300, "transient_at": "recording", "scaling": "none"},
-            "model": {"family": "lorenz-net", "params": {"size": 12, "layers": 3, "extra_links": 6, "strategy": strategy,
-                                                         "steps": steps, **params}}, "seed": 0}
+    return {
+        "data": {
+            "generator": "rossler-cross",
+            "n": 3000,
+            "seed": 1,
+            "split": {"train": [0, 2000], "validation": [2000, 3000]},
+            "test": {"seed": 2, "n": 2000},
+            "transient": 300,
+            "transient_at": "recording",
+            "scaling": "none",
+        },
+        "model": {
+            "family": "lorenz-net",
+            "params": {"size": 12, "layers": 3, "extra_links": 6, "strategy": strategy, "steps": steps, **params},
+        },
+        "seed": 0,
+    }
 
 
 def test_fit_is_reproducible_saved_exactly_and_annealing_helps(tmp_path):

@@ -1,5 +1,6 @@
 """The `narx` family: embedding, pool, FOS, free-running estimation, stabilization, persistence,
 and the thesis chapter 3 reproductions (3.2.2, 3.2.3, 3.2.4 and figure 3.9)."""
+
 from __future__ import annotations
 
 import json
@@ -7,29 +8,46 @@ import math
 
 import numpy as np
 import pytest
+from conftest import ROOT, narx, write_csv
 
 import dynmodel
 from dynmodel import engine, regression
 from dynmodel.data import Preprocessor, load_dataset, training_data
 from dynmodel.errors import DynmodelError, SpecError
 from dynmodel.spec import NoiseSpec, load_spec, validate_spec
-from dynmodel_plugins.narx import Narx, NarxFamilyParams
-from dynmodel_plugins.narx import kernels
+from dynmodel_plugins.narx import Narx, NarxFamilyParams, kernels
 from dynmodel_plugins.narx import pool as narx_pool
-from dynmodel_plugins.narx.embedding import (build_embedding, exponents_of, factor_lists, parse_term, pool_exponents,
-                                             pool_size, term_label)
+from dynmodel_plugins.narx.embedding import (
+    build_embedding,
+    exponents_of,
+    factor_lists,
+    parse_term,
+    pool_exponents,
+    pool_size,
+    term_label,
+)
 from dynmodel_plugins.narx.estimation import Scored, make_structure
 from dynmodel_plugins.narx.selection import Candidates, _sensitivity_gram
-
-from conftest import ROOT, narx, write_csv
 
 INF2 = (np.full(2, -np.inf), np.full(2, np.inf))
 
 
-def narx_raw(n: int = 4000, test_n: int = 2000, cost: str = "mse1", noise: float | None = None,
-             test_params: dict | None = None, **params) -> dict:
-    data = {"generator": "narx-system", "n": n, "seed": 1, "split": {"train": 0.75, "validation": 0.25},
-            "test": {"seed": 2, "n": test_n, **({"params": test_params} if test_params else {})}, "scaling": "none"}
+def narx_raw(
+    n: int = 4000,
+    test_n: int = 2000,
+    cost: str = "mse1",
+    noise: float | None = None,
+    test_params: dict | None = None,
+    **params,
+) -> dict:
+    data = {
+        "generator": "narx-system",
+        "n": n,
+        "seed": 1,
+        "split": {"train": 0.75, "validation": 0.25},
+        "test": {"seed": 2, "n": test_n, **({"params": test_params} if test_params else {})},
+        "scaling": "none",
+    }
     if noise is not None:
         data["noise"] = {"std": noise, "splits": ["train", "validation"]}
     model = {"lags": {"u": [0, 1, 2], "y": [1, 2]}, "degree": 5, **params}
@@ -48,6 +66,7 @@ def loaded(raw: dict, base=None):
 
 # ------------------------------------------------------------------------- embedding and pool
 
+
 def test_lags_accept_integers_and_inclusive_ranges():
     p = NarxFamilyParams(lags={"position": [0, {"from": 2, "to": 18, "step": 2}], "force": [{"from": 1, "to": 3}, 1]})
     assert p.lag_table() == {"position": [0, 2, 4, 6, 8, 10, 12, 14, 16, 18], "force": [1, 2, 3]}
@@ -58,13 +77,16 @@ def test_lags_accept_integers_and_inclusive_ranges():
     assert validate_spec(json.loads(json.dumps(resolved))).resolved() == resolved
 
 
-@pytest.mark.parametrize("lags, message", [
-    ({"u": [{"from": 5, "to": 2}], "y": [1]}, "is empty"),
-    ({"u": [-1], "y": [1]}, "is negative"),
-    ({"u": [{"from": 0, "to": 4, "step": 0}], "y": [1]}, "greater than 0"),
-    ({"u": [{"from": 0, "upto": 4}], "y": [1]}, "unknown key 'upto'"),
-    ({"u": [], "y": []}, "at least one lag"),
-])
+@pytest.mark.parametrize(
+    "lags, message",
+    [
+        ({"u": [{"from": 5, "to": 2}], "y": [1]}, "is empty"),
+        ({"u": [-1], "y": [1]}, "is negative"),
+        ({"u": [{"from": 0, "to": 4, "step": 0}], "y": [1]}, "greater than 0"),
+        ({"u": [{"from": 0, "upto": 4}], "y": [1]}, "unknown key 'upto'"),
+        ({"u": [], "y": []}, "at least one lag"),
+    ],
+)
 def test_bad_lags_are_one_line_spec_errors(lags, message):
     with pytest.raises(SpecError) as info:
         validate_spec(narx_raw(lags=lags), "spec.yaml")
@@ -72,16 +94,19 @@ def test_bad_lags_are_one_line_spec_errors(lags, message):
     assert "\n" not in line and "lags" in line and message in line
 
 
-@pytest.mark.parametrize("params, message", [
-    ({"lags": {"u": [0], "y": [0, 1]}}, "output lags start at 1"),
-    ({"lags": {"v": [0], "y": [1]}}, "'v' is not a column of the data"),
-    ({"lags": {"u": list(range(10)), "y": list(range(1, 10))}, "degree": 6}, "max_pool"),
-    ({"terms": ["y[t-1] ** 2"]}, "cannot read"),
-    ({"terms": ["y[t-1]", "y[t - 1]"]}, "repeats"),
-    ({"terms": ["w[t-1]"]}, "'w' is not a column"),
-    ({"patience": None}, "needs a stopping rule"),
-    ({"selection": "free_run"}, "use it with cost: mse_inf"),
-])
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        ({"lags": {"u": [0], "y": [0, 1]}}, "output lags start at 1"),
+        ({"lags": {"v": [0], "y": [1]}}, "'v' is not a column of the data"),
+        ({"lags": {"u": list(range(10)), "y": list(range(1, 10))}, "degree": 6}, "max_pool"),
+        ({"terms": ["y[t-1] ** 2"]}, "cannot read"),
+        ({"terms": ["y[t-1]", "y[t - 1]"]}, "repeats"),
+        ({"terms": ["w[t-1]"]}, "'w' is not a column"),
+        ({"patience": None}, "needs a stopping rule"),
+        ({"selection": "free_run"}, "use it with cost: mse_inf"),
+    ],
+)
 def test_model_mistakes_become_one_line_errors(params, message):
     raw = narx_raw(n=1000, test_n=200, **params)
     if params.get("patience", 1) is None:
@@ -125,13 +150,14 @@ def test_embedding_pads_with_zeros_and_drop_skips_the_first_patterns():
 
 # ------------------------------------------------------------------------- FOS on the pool
 
+
 @pytest.mark.parametrize("n, degree, constant", [(4, 3, True), (3, 5, False), (6, 2, True)])
 def test_gram_by_moments_and_by_chunks_equal_the_explicit_one(monkeypatch, n, degree, constant):
     rng = np.random.default_rng(0)
     X = rng.standard_normal((3000, n))
     Y = rng.standard_normal((3000, 2))
     E = pool_exponents(n, degree, constant=constant)
-    P = np.column_stack([np.prod(X ** e, axis=1) for e in E])
+    P = np.column_stack([np.prod(X**e, axis=1) for e in E])
     monkeypatch.setattr(narx_pool, "_CHUNK_ELEMENTS", 35 * 700)  # several chunks
     for method in (narx_pool.moment_gram, narx_pool.chunked_gram, narx_pool.gram):
         G, C = method(X, Y, E)
@@ -152,14 +178,25 @@ def test_fos_finds_the_structure_of_a_polynomial_narx_system(tmp_path):
     for t in range(1, 3000):
         y[t] = 0.5 * y[t - 1] - 0.3 * y[t - 1] * u[t - 1] + u[t] + 0.1 * u[t] ** 2
     write_csv(tmp_path / "d.csv", {"u": u, "y": y})
-    raw = {"data": {"path": "d.csv", "input": ["u"], "output": ["y"], "scaling": "none"},
-           "model": {"family": "narx", "params": {"lags": {"u": [0, 1, 2], "y": [1, 2]}, "degree": 3, "constant": False,
-                                                  "threshold": 1e-10, "patience": None}}}
+    raw = {
+        "data": {"path": "d.csv", "input": ["u"], "output": ["y"], "scaling": "none"},
+        "model": {
+            "family": "narx",
+            "params": {
+                "lags": {"u": [0, 1, 2], "y": [1, 2]},
+                "degree": 3,
+                "constant": False,
+                "threshold": 1e-10,
+                "patience": None,
+            },
+        },
+    }
     m = fit(raw, tmp_path)
     found = dict(zip(m.family.terms_[0], m.family.weights_))
     assert set(found) == {"y[t-1]", "u[t-1] * y[t-1]", "u[t]", "u[t]^2"}
-    np.testing.assert_allclose([found["y[t-1]"], found["u[t-1] * y[t-1]"], found["u[t]"], found["u[t]^2"]],
-                               [0.5, -0.3, 1.0, 0.1], atol=1e-9)
+    np.testing.assert_allclose(
+        [found["y[t-1]"], found["u[t-1] * y[t-1]"], found["u[t]"], found["u[t]^2"]], [0.5, -0.3, 1.0, 0.1], atol=1e-9
+    )
     assert m.metrics["test"]["nmse"] < 1e-12
 
 
@@ -172,6 +209,7 @@ def test_fos_recursion_weights_agree_with_least_squares():
 
 
 # ------------------------------------------------------------------------- compiled kernels
+
 
 def _two_output_model():
     emb = build_embedding({"u1": [0, 1], "u2": [2], "y1": [1, 3], "y2": [1]}, ["u1", "u2"], ["y1", "y2"])
@@ -248,9 +286,14 @@ def test_candidate_sensitivities_equal_the_jacobian_and_partial_gram_selects_as_
     D = kernels.model_gradient(X, st.ptr, st.reg, st.pw, st.out, fam.weights_, 1, src == 1)
     ptr, reg, pw = factor_lists(fam.exponents_)
     live = np.ones((stop, 1), dtype=np.bool_)
-    S = np.concatenate([kernels.candidate_sensitivities(X, D, ch, lag, src == 1, live, ptr, reg, pw, fam.term_output_,
-                                                        st.start, a, min(stop, a + 500), prev)
-                        for a, prev in _chunks(X, D, ch, lag, src, live, ptr, reg, pw, fam.term_output_, st.start, stop)])
+    S = np.concatenate(
+        [
+            kernels.candidate_sensitivities(
+                X, D, ch, lag, src == 1, live, ptr, reg, pw, fam.term_output_, st.start, a, min(stop, a + 500), prev
+            )
+            for a, prev in _chunks(X, D, ch, lag, src, live, ptr, reg, pw, fam.term_output_, st.start, stop)
+        ]
+    )
     np.testing.assert_allclose(S[:, 0, :], J[:, 0, :], rtol=1e-10, atol=1e-12)
     E = pool_exponents(fam.embedding_.size, 5, True)
     cand = Candidates(np.vstack([fam.exponents_, E[20:80]]), np.zeros(len(fam.exponents_) + 60, dtype=np.int64))
@@ -269,8 +312,9 @@ def _chunks(X, D, ch, lag, src, live, ptr, reg, pw, out, start, stop):
     prev = np.zeros((2, 1, len(out)))
     for a in range(0, stop, 500):
         yield a, prev
-        S = kernels.candidate_sensitivities(X, D, ch, lag, src == 1, live, ptr, reg, pw, out, start, a,
-                                            min(stop, a + 500), prev)
+        S = kernels.candidate_sensitivities(
+            X, D, ch, lag, src == 1, live, ptr, reg, pw, out, start, a, min(stop, a + 500), prev
+        )
         prev = np.concatenate([prev, S])[-2:]
 
 
@@ -282,12 +326,27 @@ def _full_columns(fam, st, td, scored, cand):
     src, ch, lag = fam.embedding_.arrays()
     D = kernels.model_gradient(X, st.ptr, st.reg, st.pw, st.out, fam.weights_, 1, src == 1)
     ptr, reg, pw = factor_lists(cand.exponents)
-    S = kernels.candidate_sensitivities(X, D, ch, lag, src == 1, np.ones((stop, 1), dtype=np.bool_), ptr, reg, pw,
-                                        cand.output, st.start, 0, stop, np.zeros((2, 1, len(cand.output))))
+    S = kernels.candidate_sensitivities(
+        X,
+        D,
+        ch,
+        lag,
+        src == 1,
+        np.ones((stop, 1), dtype=np.bool_),
+        ptr,
+        reg,
+        pw,
+        cand.output,
+        st.start,
+        0,
+        stop,
+        np.zeros((2, 1, len(cand.output))),
+    )
     return S[scored.rows[0], 0, :] / np.sqrt(scored.n * scored.var[0])
 
 
 # ------------------------------------------------------------------------- divergence and stabilization
+
 
 def test_divergence_is_reported_with_its_sample_and_bounds_stabilize_the_free_run():
     """Trained on inputs of std 1, the degree-5 model leaves every range on inputs of std 3;
@@ -298,8 +357,8 @@ def test_divergence_is_reported_with_its_sample_and_bounds_stabilize_the_free_ru
     assert free.metrics["test"]["nmse"] is None and unstable["recording"].startswith("test:")
     test = load_dataset(validate_spec(raw)).recordings[-1]
     run = free.run(test.u, test.y[:2])
-    assert run.diverged_at == unstable["sample"] and np.isnan(run.y[run.diverged_at:]).all()
-    assert np.isfinite(run.y[:run.diverged_at]).all()
+    assert run.diverged_at == unstable["sample"] and np.isnan(run.y[run.diverged_at :]).all()
+    assert np.isfinite(run.y[: run.diverged_at]).all()
     lo, hi = free.bounds
     last = run.y[run.diverged_at - 1, 0]
     assert lo[0] <= last <= hi[0]  # the last reported value is still inside the divergence band
@@ -366,9 +425,17 @@ def test_ridge_factor_equals_the_closed_form_and_auto_uses_the_free_run_validati
 def test_error_propagation_recovers_from_a_diverging_start():
     """cost mse_inf from weights whose free run diverges: the fed-back signal starts as the measured
     output and shifts to the prediction (6.3.2), ending at the free-running optimum a = 0.8, b = 1."""
-    raw = {"data": {"generator": "linear-system", "n": 3000, "seed": 3, "split": {"train": 1.0}, "scaling": "none",
-                    "noise": {"std": 0.5, "splits": ["train"]}},
-           "model": {"family": "narx", "params": {"terms": ["y[t-1]", "u[t]"]}}}
+    raw = {
+        "data": {
+            "generator": "linear-system",
+            "n": 3000,
+            "seed": 3,
+            "split": {"train": 1.0},
+            "scaling": "none",
+            "noise": {"std": 0.5, "splits": ["train"]},
+        },
+        "model": {"family": "narx", "params": {"terms": ["y[t-1]", "u[t]"]}},
+    }
     spec, ds, td = loaded(raw)
     fam = Narx(**spec.model.params.model_dump()).fit(td, "mse1")
     fam.weights_ = np.array([1.15, 1.0])  # |a| > 1: the free run leaves every range
@@ -381,10 +448,11 @@ def test_error_propagation_recovers_from_a_diverging_start():
 
 # ------------------------------------------------------------------------- persistence and data layouts
 
+
 def test_save_load_replays_the_prediction_exactly(tmp_path, cli):
     m = fit(narx_raw(n=3000, test_n=500, cost="mse_inf", noise=0.2, bounds=0.5))
     u, y = narx(1500, 99)
-    before = m.predict(u, y_tune=y[:m.warmup])
+    before = m.predict(u, y_tune=y[: m.warmup])
     path = dynmodel.save(m, tmp_path / "m.h5")
     loaded_model = dynmodel.load(path)
     np.testing.assert_array_equal(before, loaded_model.predict(u, y_tune=y[:2]))
@@ -398,8 +466,9 @@ def test_save_load_replays_the_prediction_exactly(tmp_path, cli):
     write_csv(tmp_path / "new.csv", {"u": u, "y": y})
     r = cli("predict", path, "--input", tmp_path / "new.csv", "--out", tmp_path / "p.csv")
     assert r.exit_code == 0, r.stderr
-    np.testing.assert_allclose(np.loadtxt(tmp_path / "p.csv", delimiter=",", skiprows=1)[:, 1], before[:, 0],
-                               rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        np.loadtxt(tmp_path / "p.csv", delimiter=",", skiprows=1)[:, 1], before[:, 0], rtol=1e-9, atol=1e-12
+    )
     r = cli("inspect", path)
     assert r.exit_code == 0 and "y[t-1]" in r.stdout and "mse_inf" in r.stdout
 
@@ -426,22 +495,36 @@ def test_multi_input_multi_output_and_several_recordings(tmp_path):
             y1[t] = 0.5 * y1[t - 1] + 0.8 * u1[t] + 0.4 * y2[t - 1] - 0.1 * y1[t - 1] * y2[t - 1]
         names.append(write_csv(tmp_path / f"r{k}.csv", {"u1": u1, "u2": u2, "y1": y1, "y2": y2}).name)
     terms = {"y1": ["y1[t-1]", "u1[t]", "y2[t-1]", "y1[t-1] * y2[t-1]"], "y2": ["y2[t-1]", "u2[t]", "u2[t-1]^2"]}
-    data = {"path": names[:2], "input": ["u1", "u2"], "output": ["y1", "y2"], "split": {"train": 0.8, "validation": 0.2},
-            "test": {"path": names[2]}, "scaling": "none"}
+    data = {
+        "path": names[:2],
+        "input": ["u1", "u2"],
+        "output": ["y1", "y2"],
+        "split": {"train": 0.8, "validation": 0.2},
+        "test": {"path": names[2]},
+        "scaling": "none",
+    }
     for cost in ("mse1", "mse_inf"):
         m = fit({"data": data, "model": {"family": "narx", "params": {"terms": terms}}, "cost": cost}, tmp_path)
         np.testing.assert_allclose(m.family.weights_, [0.5, 0.8, 0.4, -0.1, 0.6, 0.5, 0.2], atol=1e-9)
         assert m.metrics["test"]["per_output"]["y1"]["nmse"] < 1e-12
         assert m.metrics["train"]["samples"] == 2 * (1200 - 1)
     lags = {"u1": [0], "u2": [0, 1], "y1": [1], "y2": [1]}
-    selected = fit({"data": {**data, "scaling": "standard"},
-                    "model": {"family": "narx", "params": {"lags": lags, "degree": 2}}}, tmp_path)
+    selected = fit(
+        {"data": {**data, "scaling": "standard"}, "model": {"family": "narx", "params": {"lags": lags, "degree": 2}}},
+        tmp_path,
+    )
     assert len(selected.family.terms_) == 2
     assert max(v["nmse"] for v in selected.metrics["test"]["per_output"].values()) < 1e-6
     # noisy outputs: selection on the linearised free-running error finds both polynomials' terms
     noisy = {**data, "scaling": "standard", "noise": {"std": 0.3, "splits": ["train", "validation"]}}
-    m = fit({"data": noisy, "model": {"family": "narx", "params": {"lags": lags, "degree": 2, "selection": "free_run"}},
-             "cost": "mse_inf"}, tmp_path)
+    m = fit(
+        {
+            "data": noisy,
+            "model": {"family": "narx", "params": {"lags": lags, "degree": 2, "selection": "free_run"}},
+            "cost": "mse_inf",
+        },
+        tmp_path,
+    )
     assert set(m.family.terms_[0]) >= {"u1[t]", "y1[t-1]", "y2[t-1]", "y1[t-1] * y2[t-1]"}
     assert set(m.family.terms_[1]) >= {"u2[t]", "y2[t-1]", "u2[t-1]^2"}
     assert max(v["nmse"] for v in m.metrics["test"]["per_output"].values()) < 0.1
@@ -451,8 +534,10 @@ def test_lags_apply_to_delay_line_copies(tmp_path):
     """Output = input delayed by 40 samples: one regressor on the delay line 'u@40' at lag 0 explains it."""
     u = np.random.default_rng(3).standard_normal(3000)
     write_csv(tmp_path / "d.csv", {"u": u, "y": np.concatenate([np.full(40, u[0]), u[:-40]])})
-    raw = {"data": {"path": "d.csv", "input": ["u"], "output": ["y"], "delay_lines": [40], "scaling": "none"},
-           "model": {"family": "narx", "params": {"lags": {"u@40": [0], "y": [1]}, "degree": 2}}}
+    raw = {
+        "data": {"path": "d.csv", "input": ["u"], "output": ["y"], "delay_lines": [40], "scaling": "none"},
+        "model": {"family": "narx", "params": {"lags": {"u@40": [0], "y": [1]}, "degree": 2}},
+    }
     m = fit(raw, tmp_path)
     assert [r.label for r in m.family.embedding_.regressors] == ["u@40[t]", "y[t-1]"]
     assert "u@40[t]" in m.family.terms_[0] and m.metrics["test"]["nmse"] < 1e-12
@@ -461,15 +546,17 @@ def test_lags_apply_to_delay_line_copies(tmp_path):
 def test_unstable_selections_are_shortened_until_the_free_run_stays_in_range():
     """Degree 3 on 4000 samples: the size FOS keeps by the one-step validation error diverges in
     free run; by default terms are dropped from the end of the FOS order until it does not (3.1.4)."""
-    raw = {"data": {"generator": "narx-system", "n": 4000, "seed": 1},
-           "model": {"family": "narx", "params": {"degree": 3, "drop_unstable": False}}}
+    raw = {
+        "data": {"generator": "narx-system", "n": 4000, "seed": 1},
+        "model": {"family": "narx", "params": {"degree": 3, "drop_unstable": False}},
+    }
     kept = fit(raw)
     assert kept.metrics["train"]["unstable_from"]["sample"] < 2400
     raw["model"]["params"]["drop_unstable"] = True
     shortened = fit(raw)
     dropped = shortened.family.selection_["path"][0]["dropped_for_stability"]
     assert dropped > 0 and len(shortened.family.weights_) == len(kept.family.weights_) - dropped
-    assert shortened.family.terms_[0] == kept.family.terms_[0][:len(shortened.family.weights_)]
+    assert shortened.family.terms_[0] == kept.family.terms_[0][: len(shortened.family.weights_)]
     for split in ("train", "validation"):
         assert shortened.metrics[split]["nmse"] < 0.5
 
@@ -497,8 +584,10 @@ def _coefficients(spec_file: str, cost: str, seed: int) -> dict[str, float]:
 def test_thesis_3_2_2_one_step_estimation_is_biased_free_running_is_not(seed):
     one = _coefficients("specs/thesis-3.2.2-linear.yaml", "mse1", seed)
     inf = _coefficients("specs/thesis-3.2.2-linear.yaml", "mse_inf", seed)
-    print(f"\nseed {seed}: mse1 a = {one['y[t-1]']:.4f} b = {one['u[t]']:.4f}; "
-          f"mse_inf a = {inf['y[t-1]']:.4f} b = {inf['u[t]']:.4f}")
+    print(
+        f"\nseed {seed}: mse1 a = {one['y[t-1]']:.4f} b = {one['u[t]']:.4f}; "
+        f"mse_inf a = {inf['y[t-1]']:.4f} b = {inf['u[t]']:.4f}"
+    )
     assert abs(one["y[t-1]"] - 0.8 / 1.64) < 0.03 and abs(one["u[t]"] - 1.0) < 0.05  # eq. 3.32 / 3.33
     assert abs(inf["y[t-1]"] - 0.8) < 0.03 and abs(inf["u[t]"] - 1.0) < 0.05  # appendix B.1
 
@@ -508,8 +597,10 @@ def test_thesis_3_2_2_one_step_estimation_is_biased_free_running_is_not(seed):
 def test_thesis_3_2_3_driven_logistic_map(seed):
     one = _coefficients("specs/thesis-3.2.3-logistic.yaml", "mse1", seed)
     inf = _coefficients("specs/thesis-3.2.3-logistic.yaml", "mse_inf", seed)
-    print(f"\nseed {seed}: mse1 a = {one['y[t-1]']:.4f} b = {one['y[t-1]^2']:.4f} c = {one['u[t]']:.4f}; "
-          f"mse_inf a = {inf['y[t-1]']:.4f} b = {inf['y[t-1]^2']:.4f} c = {inf['u[t]']:.4f}")
+    print(
+        f"\nseed {seed}: mse1 a = {one['y[t-1]']:.4f} b = {one['y[t-1]^2']:.4f} c = {one['u[t]']:.4f}; "
+        f"mse_inf a = {inf['y[t-1]']:.4f} b = {inf['y[t-1]^2']:.4f} c = {inf['u[t]']:.4f}"
+    )
     assert abs(inf["y[t-1]"] - 2.0) < 0.1 and abs(inf["y[t-1]^2"] + 2.0) < 0.1 and abs(inf["u[t]"] - 0.5) < 0.05
     assert abs(one["y[t-1]"] - 2.0) > 0.5 and abs(one["y[t-1]^2"] + 2.0) > 0.5
 
@@ -530,6 +621,7 @@ def test_thesis_3_2_4_fos_selects_a_compact_accurate_model():
 @pytest.mark.slow
 def test_thesis_figure_3_9_noisy_training_data():
     """Noise std 0.1 ... 1.0 x the output std on the training outputs, clean test, median of 3 noise seeds."""
+
     def median(path, cost, level, **params):
         values = []
         for seed in NOISE_SEEDS:

@@ -1,4 +1,5 @@
 """Least squares, ridge and Fast Orthogonal Search (thesis A.2.1, A.2.2, A.3)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -37,7 +38,7 @@ def test_ridge_equals_the_closed_form_and_auto_picks_on_validation(sparse_proble
     w = np.linalg.solve(Fc.T @ Fc + 3.0 * np.eye(15), Fc.T @ yc)
     np.testing.assert_allclose(fit.coef[:, 0], w, atol=1e-9)
     auto = ridge(F, y, "auto", Fv, yv)
-    assert auto.info["validation_mse"] < 0.05 ** 2 * 1.2
+    assert auto.info["validation_mse"] < 0.05**2 * 1.2
 
 
 def test_fos_finds_the_true_terms_and_stops_on_validation(sparse_problem):

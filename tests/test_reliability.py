@@ -1,4 +1,5 @@
 """`dynmodel reliability-check`: thesis 4.4.1 / 5.3.1 examples, esn models, the protocol's numerics, the CLI."""
+
 from __future__ import annotations
 
 import json
@@ -6,16 +7,14 @@ import json
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import make_spec, narx_spec
 
 import dynmodel
 from dynmodel import engine, registry
-from dynmodel.reliability import DrivenSystem, InputDomain, Settings, check, check_model
-from dynmodel.reliability import lyapunov
+from dynmodel.reliability import DrivenSystem, InputDomain, Settings, check, check_model, lyapunov
 from dynmodel.reliability.networks import SigmoidNetwork
 from dynmodel.reliability.replicas import APART
 from dynmodel.reliability.signals import declared_sine
-
-from conftest import make_spec, narx_spec
 
 EQ_5_28 = [[0.34, 2.31], [-0.56, -1.93]]
 
@@ -115,7 +114,7 @@ def test_duffing_has_one_fixed_point_per_constant_input_yet_is_unreliable_under_
     for lv in r.levels:
         x1, x2 = lv.attractors[0].points[0]
         c = lv.input[0]
-        assert abs(x1 + x1 ** 3 - c) < 1e-4 * max(1, abs(c)) and abs(x2) < 1e-4
+        assert abs(x1 + x1**3 - c) < 1e-4 * max(1, abs(c)) and abs(x2) < 1e-4
     assert not any(c.startswith("constant input") for c in r.verdict.counterexamples)
     # ... yet u = 27 sin(1.4 t) leaves the replicas apart with a positive conditional exponent
     thesis = next(x for x in r.signals if x.name.startswith("27 sin(1.4 t)"))
@@ -229,8 +228,16 @@ def test_same_seed_same_report_other_seed_other_initial_states():
 
 # ---------------------------------------------------------------------------------------- esn models
 def _fit(mode: str, seed: int, **params):
-    raw = narx_spec(mode=mode, seed=seed, n=2500, test_n=500, transient=200, scaling="standard",
-                    split={"train": 0.8, "validation": 0.2}, **params)
+    raw = narx_spec(
+        mode=mode,
+        seed=seed,
+        n=2500,
+        test_n=500,
+        transient=200,
+        scaling="standard",
+        split={"train": 0.8, "validation": 0.2},
+        **params,
+    )
     return engine.fit(make_spec(raw))
 
 
@@ -259,8 +266,7 @@ def test_esn_with_default_singular_scaling_passes(mode, seed):
 
 
 def test_esn_with_the_eq_5_28_weights_is_unreliable():
-    raw = narx_spec(n=1500, test_n=300, transient=100,
-                    weights={"C": EQ_5_28, "b": [1, 1], "c0": [0, 0]})
+    raw = narx_spec(n=1500, test_n=300, transient=100, weights={"C": EQ_5_28, "b": [1, 1], "c0": [0, 0]})
     for key in ("size", "scale"):
         raw["model"]["params"].pop(key)
     m = engine.fit(make_spec(raw))
@@ -298,16 +304,33 @@ def test_cli_system_verdicts_exit_codes_and_json(cli, tmp_path):
     assert rep["replica_test"]["largest_final_distance"] > 1
     assert len(rep["replica_test"]["signals"]) == len({s["name"] for s in rep["replica_test"]["signals"]})
 
-    r = cli("reliability-check", "--system", "tanh-network", "--param", "sigma=0.95", "--json",
-            tmp_path / "ok.json", "-q")
+    r = cli(
+        "reliability-check", "--system", "tanh-network", "--param", "sigma=0.95", "--json", tmp_path / "ok.json", "-q"
+    )
     assert r.exit_code == 0 and "RELIABLE" in r.stdout and "washout" in r.stdout
     ok = json.loads((tmp_path / "ok.json").read_text())
     assert ok["verdict"] == "reliable" and ok["params"]["sigma"] == 0.95 and ok["washout_steps"] > 0
 
 
 def test_cli_extra_sine_and_model_file(cli, tmp_path):
-    r = cli("reliability-check", "--system", "lorenz-driven", "--sine", "3:0.7", "--replicas", "4",
-            "--scan-replicas", "4", "--length", "500", "--levels", "5", "-q", "--json", tmp_path / "l.json")
+    r = cli(
+        "reliability-check",
+        "--system",
+        "lorenz-driven",
+        "--sine",
+        "3:0.7",
+        "--replicas",
+        "4",
+        "--scan-replicas",
+        "4",
+        "--length",
+        "500",
+        "--levels",
+        "5",
+        "-q",
+        "--json",
+        tmp_path / "l.json",
+    )
     assert r.exit_code == 0, r.stdout
     names = [s["name"] for s in json.loads((tmp_path / "l.json").read_text())["replica_test"]["signals"]]
     assert "3 sin(0.7 t)" in names
@@ -320,15 +343,24 @@ def test_cli_extra_sine_and_model_file(cli, tmp_path):
     assert rep["model"] == str(path) and rep["system"]["state_dim"] == 60 and rep["external_mode"] is None
 
 
-@pytest.mark.parametrize("args,needle", [
-    ((), "give either a model file or --system"),
-    (("m.h5", "--system", "duffing"), "not both"),
-    (("--system", "lorenz",), "unknown test system 'lorenz'"),
-    (("--system", "duffing", "--param", "damping"), "is not key=value"),
-    (("--system", "duffing", "--param", "dampng=0.1"), "invalid parameter"),
-    (("--system", "duffing", "--sine", "27"), "AMPLITUDE:OMEGA"),
-    (("missing.h5",), "model file not found"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        ((), "give either a model file or --system"),
+        (("m.h5", "--system", "duffing"), "not both"),
+        (
+            (
+                "--system",
+                "lorenz",
+            ),
+            "unknown test system 'lorenz'",
+        ),
+        (("--system", "duffing", "--param", "damping"), "is not key=value"),
+        (("--system", "duffing", "--param", "dampng=0.1"), "invalid parameter"),
+        (("--system", "duffing", "--sine", "27"), "AMPLITUDE:OMEGA"),
+        (("missing.h5",), "model file not found"),
+    ],
+)
 def test_cli_usage_errors_are_one_line_exit_2(cli, tmp_path, args, needle):
     r = cli("reliability-check", *args)
     assert r.exit_code == 2
@@ -386,7 +418,10 @@ def test_algebraic_evidence_for_leaky_and_expanding_networks():
 
     C = np.array([[0.0, 0.8], [0.3, 0.0]])
     ev = {e.name: e for e in tanh_network_evidence(C, a=[0.1, 0.1], g=[1, 1], c0=[0, 0])}
-    assert ev["max|a| + sigma(diag(g) C)"].implies == "reliable" and abs(ev["max|a| + sigma(diag(g) C)"].value - 0.9) < 1e-12
+    assert (
+        ev["max|a| + sigma(diag(g) C)"].implies == "reliable"
+        and abs(ev["max|a| + sigma(diag(g) C)"].value - 0.9) < 1e-12
+    )
     ev = {e.name: e for e in tanh_network_evidence(1.5 * np.eye(2), a=[0, 0], g=[1, 1], c0=[0, 0])}
     assert ev["rho(C)"].implies == "unreliable" and ev["sigma(C)"].implies == "undecided"
     ev = {e.name: e for e in tanh_network_evidence(1.5 * np.eye(2), a=[0, 0], g=[1, 1], c0=[0.3, 0])}
@@ -440,8 +475,17 @@ def test_lorenz_4_52_exponent_is_minus_one_per_time_unit_at_rest():
 
 @pytest.mark.parametrize("leak", [{"relaxation": 0.5, "relaxation_gain": True}, {"relaxation": [0.0, 0.9]}])
 def test_leaky_esn_with_delay_lines(leak):
-    raw = narx_spec(n=2500, test_n=500, transient=200, scaling="standard", split={"train": 0.8, "validation": 0.2},
-                    size=100, connectivity=None, scale=None, **leak)
+    raw = narx_spec(
+        n=2500,
+        test_n=500,
+        transient=200,
+        scaling="standard",
+        split={"train": 0.8, "validation": 0.2},
+        size=100,
+        connectivity=None,
+        scale=None,
+        **leak,
+    )
     raw["data"]["delay_lines"] = [5, 20]
     m = engine.fit(make_spec(raw))
     r = check_model(m)

@@ -1,14 +1,14 @@
 """The YAML spec: the issue's examples validate, defaults resolve, mistakes get one clear line."""
+
 from __future__ import annotations
 
 import json
 
 import pytest
+from conftest import ROOT, narx_spec
 
 from dynmodel.errors import SpecError
 from dynmodel.spec import load_spec, parse_yaml, spec_json_schema, validate_spec
-
-from conftest import ROOT, narx_spec
 
 
 def test_issue_examples_validate_with_resolved_defaults():
@@ -21,7 +21,12 @@ def test_issue_examples_validate_with_resolved_defaults():
     assert gen_spec.data.split.test == (10000, 20000)
     params = gen_spec.model.params
     # defaults of the thesis 5.3.2 networks
-    assert (params.size, params.connectivity, params.input_connectivity, params.bias_connectivity) == (200, 0.01, 0.1, 0.8)
+    assert (params.size, params.connectivity, params.input_connectivity, params.bias_connectivity) == (
+        200,
+        0.01,
+        0.1,
+        0.8,
+    )
     assert params.scale.by == "singular" and params.scale.value == 0.95
     resolved = gen_spec.resolved()
     assert resolved["model"]["params"]["connectivity"] == 0.01
@@ -102,13 +107,16 @@ def test_relaxation_and_explicit_weights_are_checked():
     assert spec.model.params.size == 2 and spec.model.params.scale.by == "none"
 
 
-@pytest.mark.parametrize("text, expected", [
-    ("name: x\ndata:\n  path: a.csv\n   input: [u]\n", "spec.yaml:4:"),
-    ("name: x\ndata: {path: a.csv\n", "malformed YAML"),
-    ("name: x\nname: y\n", "duplicate key 'name'"),
-    ("", "the spec is empty"),
-    ("- a\n- b\n", "must be a mapping"),
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("name: x\ndata:\n  path: a.csv\n   input: [u]\n", "spec.yaml:4:"),
+        ("name: x\ndata: {path: a.csv\n", "malformed YAML"),
+        ("name: x\nname: y\n", "duplicate key 'name'"),
+        ("", "the spec is empty"),
+        ("- a\n- b\n", "must be a mapping"),
+    ],
+)
 def test_yaml_problems(text, expected):
     with pytest.raises(SpecError) as info:
         parse_yaml(text, "spec.yaml")
@@ -117,6 +125,15 @@ def test_yaml_problems(text, expected):
 
 def test_json_schema_shows_every_family_and_generator_parameter():
     schema = json.dumps(spec_json_schema())
-    for needle in ["input_connectivity", "relaxation_gain", "tune_in", "narx-system", "rossler-cross",
-                   "horizon", "integration_step", "delay_lines", "transient"]:
+    for needle in [
+        "input_connectivity",
+        "relaxation_gain",
+        "tune_in",
+        "narx-system",
+        "rossler-cross",
+        "horizon",
+        "integration_step",
+        "delay_lines",
+        "transient",
+    ]:
         assert needle in schema, needle

@@ -1,4 +1,5 @@
 """HDF5 model files: layout, round trip, atomic writes, clear errors for bad files."""
+
 from __future__ import annotations
 
 import json
@@ -7,17 +8,21 @@ import os
 import h5py
 import numpy as np
 import pytest
+from conftest import make_spec, narx_spec
 
 from dynmodel import engine, store
 from dynmodel.errors import ModelFileError
 
-from conftest import make_spec, narx_spec
-
 
 @pytest.fixture(scope="module")
 def model():
-    return engine.fit(make_spec(narx_spec(mode="external", n=2000, test_n=800, transient=100, size=50,
-                                          split={"train": 0.7, "validation": 0.3})))
+    return engine.fit(
+        make_spec(
+            narx_spec(
+                mode="external", n=2000, test_n=800, transient=100, size=50, split={"train": 0.7, "validation": 0.3}
+            )
+        )
+    )
 
 
 def test_layout_opens_in_any_hdf5_reader(tmp_path, model):

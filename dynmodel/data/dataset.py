@@ -4,6 +4,7 @@ A *recording* is one continuous series: states and free runs restart at its firs
 Each split is a list of ``(recording, start, stop)`` ranges; the ``transient`` samples at the
 start of every range are excluded from fitting and scoring; scores pool over recordings.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -106,15 +107,25 @@ class Dataset:
                     if excess[k] > worst[0]:
                         worst = (float(excess[k]), rec, start + k)
                 if worst[0] > margin:
-                    found.append({"split": split, "input": name, "excess": worst[0],
-                                  "recording": self.recordings[worst[1]].name, "sample": worst[2]})
+                    found.append(
+                        {
+                            "split": split,
+                            "input": name,
+                            "excess": worst[0],
+                            "recording": self.recordings[worst[1]].name,
+                            "sample": worst[2],
+                        }
+                    )
         return found
 
     def excursion_notes(self) -> list[str]:
         """:meth:`input_excursions` as sentences for a user."""
-        return [f"the {e['split']} input '{e['input']}' leaves the training range by {100 * e['excess']:.0f} % of its "
-                f"width (sample {e['sample']} of '{e['recording']}'): the model extrapolates there, and the "
-                f"{e['split']} scores include it" for e in self.input_excursions()]
+        return [
+            f"the {e['split']} input '{e['input']}' leaves the training range by {100 * e['excess']:.0f} % of its "
+            f"width (sample {e['sample']} of '{e['recording']}'): the model extrapolates there, and the "
+            f"{e['split']} scores include it"
+            for e in self.input_excursions()
+        ]
 
     def concat_outputs(self, split: str) -> np.ndarray:
         """Outputs of ``split`` concatenated (the pieces of :meth:`concat_inputs`)."""
@@ -124,6 +135,7 @@ class Dataset:
 
 # ---------------------------------------------------------------- loading sources
 
+
 def _check_finite(arr: np.ndarray, names: list[str], where: str) -> None:
     bad = ~np.isfinite(arr)
     if bad.any():
@@ -131,9 +143,12 @@ def _check_finite(arr: np.ndarray, names: list[str], where: str) -> None:
         row, col = int(rows[0]), int(cols[0])
         kind = "NaN" if np.isnan(arr[row, col]) else "inf"
         count = int(bad[:, col].sum())
-        raise DataError(f"column '{names[col]}' has {kind} at sample {row} ({count} non-finite value"
-                        f"{'s' if count > 1 else ''} in that column)", where,
-                        "remove, interpolate or fill those samples before fitting")
+        raise DataError(
+            f"column '{names[col]}' has {kind} at sample {row} ({count} non-finite value"
+            f"{'s' if count > 1 else ''} in that column)",
+            where,
+            "remove, interpolate or fill those samples before fitting",
+        )
 
 
 def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], float | None]:
@@ -147,8 +162,9 @@ def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], flo
     for p in paths:
         path = resolve(p)
         wanted = selectors + ([time_col] if time_col is not None else [])
-        cols = read_columns(path, wanted, header=src.get("header", True),
-                            columns=src.get("columns"), delimiter=src.get("delimiter"))
+        cols = read_columns(
+            path, wanted, header=src.get("header", True), columns=src.get("columns"), delimiter=src.get("delimiter")
+        )
         data = np.column_stack([cols[str(s).strip()] for s in selectors]).astype(np.float64)
         names = [str(s) for s in selectors]
         _check_finite(data, names, str(path))
@@ -159,8 +175,11 @@ def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], flo
         segments = src.get("segments") or [(0, data.shape[0])]
         for k, (a, b) in enumerate(segments):
             if not 0 <= a < b <= data.shape[0]:
-                raise DataError(f"segment [{a}, {b}] lies outside the file's {data.shape[0]} samples",
-                                str(path), "correct data.segments")
+                raise DataError(
+                    f"segment [{a}, {b}] lies outside the file's {data.shape[0]} samples",
+                    str(path),
+                    "correct data.segments",
+                )
             name = path.name if len(segments) == 1 else f"{path.name}[{a}:{b}]"
             recs.append(Recording(name, data[a:b, :n_in].copy(), data[a:b, n_in:].copy()))
     if not steps:
@@ -168,8 +187,11 @@ def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], flo
     first, where = steps[0]
     for step, other in steps[1:]:
         if abs(step - first) > resample.SAME_STEP * first:
-            raise DataError(f"sampled every {step:.6g} s while {Path(where).name} is sampled every {first:.6g} s",
-                            other, f"add 'resample: {first:.6g}' to put every recording on one grid")
+            raise DataError(
+                f"sampled every {step:.6g} s while {Path(where).name} is sampled every {first:.6g} s",
+                other,
+                f"add 'resample: {first:.6g}' to put every recording on one grid",
+            )
     return recs, first
 
 
@@ -180,8 +202,11 @@ def _generator_recording(src: dict[str, Any], where: str) -> tuple[Recording, fl
     except ValueError as exc:
         from ..spec import validation_summary
 
-        raise SpecError(f"invalid generator params ({validation_summary(exc)})", f"{where}.params",
-                        f"see the '{src['generator']}' section of `dynmodel schema`") from None
+        raise SpecError(
+            f"invalid generator params ({validation_summary(exc)})",
+            f"{where}.params",
+            f"see the '{src['generator']}' section of `dynmodel schema`",
+        ) from None
     rng = np.random.default_rng(int(src.get("seed", 0)))
     u, y = gen.generate(params, int(src.get("n", 10000)), rng)
     u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)
@@ -191,8 +216,9 @@ def _generator_recording(src: dict[str, Any], where: str) -> tuple[Recording, fl
         if chosen and list(chosen) != names:
             unknown = [c for c in chosen if c not in names]
             if unknown:
-                raise SpecError(f"generator '{gen.name}' has no {key} '{unknown[0]}'", f"{where}.{key}",
-                                f"use a subset of {names}")
+                raise SpecError(
+                    f"generator '{gen.name}' has no {key} '{unknown[0]}'", f"{where}.{key}", f"use a subset of {names}"
+                )
     if src.get("input"):
         idx = [in_names.index(c) for c in src["input"]]
         u, in_names = u[:, idx], [in_names[i] for i in idx]
@@ -205,9 +231,23 @@ def _generator_recording(src: dict[str, Any], where: str) -> tuple[Recording, fl
     return Recording(label, u, y), float(st), in_names, out_names
 
 
-SOURCE_KEYS = ("path", "input", "output", "header", "columns", "delimiter", "segments", "sampling_time",
-               "time_column", "time_unit", "resample",
-               "generator", "params", "n", "seed")
+SOURCE_KEYS = (
+    "path",
+    "input",
+    "output",
+    "header",
+    "columns",
+    "delimiter",
+    "segments",
+    "sampling_time",
+    "time_column",
+    "time_unit",
+    "resample",
+    "generator",
+    "params",
+    "n",
+    "seed",
+)
 
 
 def _merge_source(main: dict[str, Any], override: dict[str, Any], split: str) -> dict[str, Any]:
@@ -227,8 +267,12 @@ def _merge_source(main: dict[str, Any], override: dict[str, Any], split: str) ->
     if "params" in given and isinstance(base.get("params"), dict):
         given["params"] = {**base["params"], **given["params"]}
     merged = {**base, **given}
-    if "generator" in merged and "seed" not in given and merged.get("generator") == main.get("generator") \
-            and merged.get("params") == main.get("params"):
+    if (
+        "generator" in merged
+        and "seed" not in given
+        and merged.get("generator") == main.get("generator")
+        and merged.get("params") == main.get("params")
+    ):
         merged["seed"] = int(main.get("seed", 0)) + {"validation": 1, "test": 2}[split] * 1000
     return merged
 
@@ -238,16 +282,20 @@ def _load_source(src: dict[str, Any], resolve, where: str):
         rec, st, ins, outs = _generator_recording(src, where)
         return [rec], st, ins, outs
     if "input" not in src or "output" not in src:
-        raise SpecError("a file source needs 'input' and 'output' column lists", where,
-                        "add input: [...] and output: [...]")
+        raise SpecError(
+            "a file source needs 'input' and 'output' column lists", where, "add input: [...] and output: [...]"
+        )
     if src.get("resample") is not None and src.get("time_column") is None:
         raise SpecError("resample needs the time stamps", f"{where}.resample", "add time_column: NAME (and time_unit)")
     recs, step = _file_recordings(src, resolve)
     st = src.get("sampling_time")
     if step is not None:
         if st is not None and abs(float(st) - step) > resample.UNIFORM_TOLERANCE * step:
-            raise SpecError(f"sampling_time {st:g} disagrees with the time column's step of {step:.6g} s",
-                            f"{where}.sampling_time", "remove sampling_time (the time column gives it)")
+            raise SpecError(
+                f"sampling_time {st:g} disagrees with the time column's step of {step:.6g} s",
+                f"{where}.sampling_time",
+                "remove sampling_time (the time column gives it)",
+            )
         st = step
     return recs, float(st or 1.0), [str(s) for s in src["input"]], [str(s) for s in src["output"]]
 
@@ -286,17 +334,24 @@ def load_dataset(spec) -> Dataset:
             split = {"train": 0.8, "test": 0.2}
     for s in separate:
         if split.get(s) is not None:
-            raise SpecError(f"the {s} split is given twice: in data.split and as a separate data.{s} source",
-                            f"{spec.source}: data.split.{s}", "remove one of them")
+            raise SpecError(
+                f"the {s} split is given twice: in data.split and as a separate data.{s} source",
+                f"{spec.source}: data.split.{s}",
+                "remove one of them",
+            )
     if split.get("train") is None:
-        raise SpecError("data.split has no train part", f"{spec.source}: data.split", "add train: 0.7 (or a sample range)")
+        raise SpecError(
+            "data.split has no train part", f"{spec.source}: data.split", "add train: 0.7 (or a sample range)"
+        )
 
     for i, rec in enumerate(main_recs):
         for s, (a, b) in _split_bounds(split, rec.n).items():
             if b > rec.n:
-                raise DataError(f"the {s} range [{a}, {b}] needs {b} samples but recording '{rec.name}' has {rec.n}",
-                                f"{spec.source}: data.split.{s}",
-                                "shorten the range, or provide more data (data.n for generators)")
+                raise DataError(
+                    f"the {s} range [{a}, {b}] needs {b} samples but recording '{rec.name}' has {rec.n}",
+                    f"{spec.source}: data.split.{s}",
+                    "shorten the range, or provide more data (data.n for generators)",
+                )
             if b > a:
                 ranges[s].append((i, a, b))
 
@@ -304,19 +359,32 @@ def load_dataset(spec) -> Dataset:
         src = _merge_source(data, override, s)
         recs, st_s, ins, outs = _load_source(src, resolve, f"data.{s}")
         if len(ins) != len(in_names) or len(outs) != len(out_names):
-            raise DataError(f"the separate {s} recording has {len(ins)} inputs / {len(outs)} outputs, "
-                            f"the main data {len(in_names)} / {len(out_names)}", f"{spec.source}: data.{s}",
-                            "select the same input and output columns")
+            raise DataError(
+                f"the separate {s} recording has {len(ins)} inputs / {len(outs)} outputs, "
+                f"the main data {len(in_names)} / {len(out_names)}",
+                f"{spec.source}: data.{s}",
+                "select the same input and output columns",
+            )
         if abs(st_s - st) > resample.SAME_STEP * st:
-            raise DataError(f"the separate {s} recording is sampled every {st_s}, the main data every {st}",
-                            f"{spec.source}: data.{s}.sampling_time", "resample to a common sampling time")
+            raise DataError(
+                f"the separate {s} recording is sampled every {st_s}, the main data every {st}",
+                f"{spec.source}: data.{s}.sampling_time",
+                "resample to a common sampling time",
+            )
         for rec in recs:
             rec.name = f"{s}:{rec.name}"
             recordings.append(rec)
             ranges[s].append((len(recordings) - 1, 0, rec.n))
 
-    ds = Dataset(recordings, {k: v for k, v in ranges.items() if v}, int(data.get("transient", 0)),
-                 in_names, out_names, st, transient_at=data.get("transient_at", "segment"))
+    ds = Dataset(
+        recordings,
+        {k: v for k, v in ranges.items() if v},
+        int(data.get("transient", 0)),
+        in_names,
+        out_names,
+        st,
+        transient_at=data.get("transient_at", "segment"),
+    )
     _add_noise(ds, data.get("noise"), spec.seed)
     _check_sizes(ds, spec.source)
     return ds
@@ -340,26 +408,32 @@ def _check_sizes(ds: Dataset, source: str) -> None:
     for split, rngs in ds.ranges.items():
         if ds.n_scored(split) == 0:
             longest = max(stop - start for _, start, stop in rngs)
-            raise DataError(f"the {split} split has no sample left after the transient of {ds.transient} "
-                            f"(its longest segment has {longest} samples)", f"{source}: data.transient",
-                            "lower data.transient or enlarge the split")
+            raise DataError(
+                f"the {split} split has no sample left after the transient of {ds.transient} "
+                f"(its longest segment has {longest} samples)",
+                f"{source}: data.transient",
+                "lower data.transient or enlarge the split",
+            )
     if "train" not in ds.ranges:
         raise DataError("no training samples", f"{source}: data.split", "give a train part")
     if ds.n_scored("train") < 10:
-        raise DataError(f"only {ds.n_scored('train')} training samples after the transient", f"{source}: data",
-                        "provide more data or lower data.transient")
+        raise DataError(
+            f"only {ds.n_scored('train')} training samples after the transient",
+            f"{source}: data",
+            "provide more data or lower data.transient",
+        )
 
 
 def describe(ds: Dataset) -> list[dict[str, Any]]:
     """Per split: recordings, samples and scored samples (for `dynmodel validate`)."""
     rows = []
     for split in ds.splits():
-        rows.append({
-            "split": split,
-            "segments": [f"{ds.recordings[r].name}[{a}:{b}]" for r, a, b in ds.ranges[split]],
-            "samples": sum(b - a for _, a, b in ds.ranges[split]),
-            "scored": ds.n_scored(split),
-        })
+        rows.append(
+            {
+                "split": split,
+                "segments": [f"{ds.recordings[r].name}[{a}:{b}]" for r, a, b in ds.ranges[split]],
+                "samples": sum(b - a for _, a, b in ds.ranges[split]),
+                "scored": ds.n_scored(split),
+            }
+        )
     return rows
-
-

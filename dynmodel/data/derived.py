@@ -12,9 +12,11 @@
 Items are the JSON forms of the spec's ``derived_inputs`` (``{"time": "linear"}``,
 ``{"time": {"saturating": 30.0}}``, ``{"direction": "x", "deadband": 0.1}``, ...).
 """
+
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numba
 import numpy as np
@@ -103,15 +105,18 @@ def check(items: Sequence[dict[str, Any]], input_names: Sequence[str]) -> None:
     for i, item in enumerate(items):
         k = kind(item)
         if k != "time" and item[k] not in input_names:
-            raise ValueError(f"derived_inputs[{i}]: '{item[k]}' is not an input column; the inputs are {list(input_names)}")
+            raise ValueError(
+                f"derived_inputs[{i}]: '{item[k]}' is not an input column; the inputs are {list(input_names)}"
+            )
         name = channel_name(item)
         if name in seen:
             raise ValueError(f"derived_inputs[{i}]: the channel name '{name}' is already taken; give another 'name'")
         seen.add(name)
 
 
-def compute(items: Sequence[dict[str, Any]], u: np.ndarray, input_names: Sequence[str],
-            sampling_time: float) -> np.ndarray:
+def compute(
+    items: Sequence[dict[str, Any]], u: np.ndarray, input_names: Sequence[str], sampling_time: float
+) -> np.ndarray:
     """(n, len(items)) derived channels of one recording's physical inputs ``u`` (n, n_inputs)."""
     n = u.shape[0]
     out = np.empty((n, len(items)))

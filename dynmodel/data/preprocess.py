@@ -14,6 +14,7 @@ trend); predictions get T(t) back, so scores stay in the measured units. Every a
 recording's first sample (t = 0), as free runs do. Scaling is affine per channel, with
 statistics from the training split only.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -47,7 +48,7 @@ def delayed_differences(u: np.ndarray, delays: list[int]) -> np.ndarray:
     k = u.shape[1]
     full = delayed_copies(u, delays)
     for j in range(len(delays)):
-        full[:, k * (j + 1):k * (j + 2)] = u - full[:, k * (j + 1):k * (j + 2)]
+        full[:, k * (j + 1) : k * (j + 2)] = u - full[:, k * (j + 1) : k * (j + 2)]
     return full
 
 
@@ -74,18 +75,39 @@ class Preprocessor:
     difference_scale: np.ndarray = field(default_factory=lambda: np.ones(0))
 
     @classmethod
-    def fit(cls, ds: Dataset, delay_lines: list[int], scaling: str, derived: list[dict[str, Any]] | None = None,
-            detrend: list[Any] | None = None, delay_form: str = "copy") -> "Preprocessor":
+    def fit(
+        cls,
+        ds: Dataset,
+        delay_lines: list[int],
+        scaling: str,
+        derived: list[dict[str, Any]] | None = None,
+        detrend: list[Any] | None = None,
+        delay_form: str = "copy",
+    ) -> Preprocessor:
         """Trend coefficients, then per-channel mean and std of the training ranges (``scaling: standard``).
 
         Raises ValueError when a derived input names an unknown input column."""
         n_in, n_out = len(ds.input_names), len(ds.output_names)
         items = [{k: v for k, v in dict(item).items() if v is not None} for item in (derived or [])]
         derived_mod.check(items, ds.input_names)
-        pre = cls(list(ds.input_names), list(ds.output_names), ds.sampling_time, list(delay_lines), scaling,
-                  np.zeros(n_in), np.ones(n_in), np.zeros(n_out), np.ones(n_out), items,
-                  np.zeros(len(items)), np.ones(len(items)), list(detrend or []), np.zeros((len(detrend or []), n_out)),
-                  delay_form, np.ones(n_in * len(delay_lines)))
+        pre = cls(
+            list(ds.input_names),
+            list(ds.output_names),
+            ds.sampling_time,
+            list(delay_lines),
+            scaling,
+            np.zeros(n_in),
+            np.ones(n_in),
+            np.zeros(n_out),
+            np.ones(n_out),
+            items,
+            np.zeros(len(items)),
+            np.ones(len(items)),
+            list(detrend or []),
+            np.zeros((len(detrend or []), n_out)),
+            delay_form,
+            np.ones(n_in * len(delay_lines)),
+        )
         train = ds.scored("train")
         if pre.detrend:
             pre.trend_coef = _fit_trend(ds, train, pre.detrend, items)
@@ -96,8 +118,10 @@ class Preprocessor:
             pre.input_offset, pre.input_scale = u.mean(axis=0), _safe_std(u)
             pre.output_offset, pre.output_scale = y.mean(axis=0), _safe_std(y)
             if items:
-                ds_ = [derived_mod.compute(items, ds.recordings[r].u[:b], ds.input_names, ds.sampling_time)[a:b]
-                       for r, a, b in train]
+                ds_ = [
+                    derived_mod.compute(items, ds.recordings[r].u[:b], ds.input_names, ds.sampling_time)[a:b]
+                    for r, a, b in train
+                ]
                 d = np.concatenate(ds_)
                 pre.derived_offset, pre.derived_scale = d.mean(axis=0), _safe_std(d)
         if delay_form == "difference" and delay_lines:
@@ -125,7 +149,7 @@ class Preprocessor:
         u = _columns(u, len(self.input_names), "input")
         um = self._delayed(u)
         if self.delay_form == "difference" and self.delay_lines:
-            um[:, len(self.input_names):] /= self.difference_scale
+            um[:, len(self.input_names) :] /= self.difference_scale
         if not self.derived:
             return um
         extra = derived_mod.compute(self.derived, u, self.input_names, self.sampling_time)
@@ -155,11 +179,19 @@ class Preprocessor:
         return y + self.trend(len(y)) if self.detrend else y
 
     def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        arrays = {"input_offset": self.input_offset, "input_scale": self.input_scale,
-                  "output_offset": self.output_offset, "output_scale": self.output_scale}
-        attrs: dict[str, Any] = {"input_names": self.input_names, "output_names": self.output_names,
-                                 "sampling_time": self.sampling_time, "delay_lines": self.delay_lines,
-                                 "scaling": self.scaling}
+        arrays = {
+            "input_offset": self.input_offset,
+            "input_scale": self.input_scale,
+            "output_offset": self.output_offset,
+            "output_scale": self.output_scale,
+        }
+        attrs: dict[str, Any] = {
+            "input_names": self.input_names,
+            "output_names": self.output_names,
+            "sampling_time": self.sampling_time,
+            "delay_lines": self.delay_lines,
+            "scaling": self.scaling,
+        }
         if self.derived:
             arrays.update(derived_offset=self.derived_offset, derived_scale=self.derived_scale)
             attrs["derived_inputs"] = self.derived
@@ -172,11 +204,18 @@ class Preprocessor:
         return arrays, attrs
 
     @classmethod
-    def from_arrays(cls, arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> "Preprocessor":
-        pre = cls(list(attrs["input_names"]), list(attrs["output_names"]), float(attrs["sampling_time"]),
-                  [int(d) for d in attrs["delay_lines"]], str(attrs["scaling"]),
-                  *(np.asarray(arrays[k], dtype=np.float64) for k in
-                    ("input_offset", "input_scale", "output_offset", "output_scale")))
+    def from_arrays(cls, arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> Preprocessor:
+        pre = cls(
+            list(attrs["input_names"]),
+            list(attrs["output_names"]),
+            float(attrs["sampling_time"]),
+            [int(d) for d in attrs["delay_lines"]],
+            str(attrs["scaling"]),
+            *(
+                np.asarray(arrays[k], dtype=np.float64)
+                for k in ("input_offset", "input_scale", "output_offset", "output_scale")
+            ),
+        )
         if attrs.get("derived_inputs"):
             pre.derived = list(attrs["derived_inputs"])
             pre.derived_offset = np.asarray(arrays["derived_offset"], dtype=np.float64)
@@ -185,13 +224,15 @@ class Preprocessor:
             pre.detrend = list(attrs["detrend"])
             pre.trend_coef = np.asarray(arrays["trend_coef"], dtype=np.float64).reshape(len(pre.detrend), -1)
         pre.delay_form = str(attrs.get("delay_form", "copy"))  # files written before the difference form hold copies
-        pre.difference_scale = np.asarray(arrays.get("difference_scale", np.ones(len(pre.input_names) * len(pre.delay_lines))),
-                                          dtype=np.float64)
+        pre.difference_scale = np.asarray(
+            arrays.get("difference_scale", np.ones(len(pre.input_names) * len(pre.delay_lines))), dtype=np.float64
+        )
         return pre
 
 
-def _fit_trend(ds: Dataset, ranges: list[tuple[int, int, int]], functions: list[Any],
-               derived: list[dict[str, Any]]) -> np.ndarray:
+def _fit_trend(
+    ds: Dataset, ranges: list[tuple[int, int, int]], functions: list[Any], derived: list[dict[str, Any]]
+) -> np.ndarray:
     """Coefficients (len(functions), n_outputs) of y = c_rec + sum_j c_j f_j(t) + b' v_t by least squares on
     the training ranges: one constant c_rec per recording (a recording restarts the clock), v_t the
     inputs and derived inputs (nuisance terms, not kept)."""
@@ -208,7 +249,7 @@ def _fit_trend(ds: Dataset, ranges: list[tuple[int, int, int]], functions: list[
     X, Y = np.concatenate(rows), np.concatenate(targets)
     scale = np.maximum(np.abs(X).max(axis=0), 1e-300)
     coef, *_ = np.linalg.lstsq(X / scale, Y, rcond=None)
-    return (coef / scale[:, None])[:len(functions)]
+    return (coef / scale[:, None])[: len(functions)]
 
 
 def _columns(a: np.ndarray, k: int, what: str) -> np.ndarray:

@@ -4,12 +4,13 @@ A column selector is a name (CSV header entry, NPZ key, HDF5 dataset path, MAT v
 optionally with a 0-based column index for 2-D arrays: ``"q[1]"``. Headerless text files
 are read with ``header: false`` and either ``columns: [names...]`` or integer selectors.
 """
+
 from __future__ import annotations
 
 import csv
 import re
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -31,25 +32,34 @@ def _split_selector(sel: str | int) -> tuple[str, int | None]:
 def _as_column(arr: np.ndarray, col: int | None, path: Path, name: str) -> np.ndarray:
     a = np.asarray(arr)
     if a.dtype.kind not in "biuf":
-        raise DataError(f"'{name}' holds {a.dtype} values, not numbers", str(path),
-                        "select a numeric variable")
+        raise DataError(f"'{name}' holds {a.dtype} values, not numbers", str(path), "select a numeric variable")
     a = np.squeeze(a.astype(np.float64))
     if col is not None:
         if a.ndim != 2:
-            raise DataError(f"'{name}' is {a.ndim}-D, so '{name}[{col}]' cannot pick a column",
-                            str(path), f"use '{name}' without an index")
+            raise DataError(
+                f"'{name}' is {a.ndim}-D, so '{name}[{col}]' cannot pick a column",
+                str(path),
+                f"use '{name}' without an index",
+            )
         if a.shape[0] < a.shape[1]:
             a = a.T
         if col >= a.shape[1]:
-            raise DataError(f"'{name}' has {a.shape[1]} columns, index {col} is out of range",
-                            str(path), f"use an index below {a.shape[1]}")
+            raise DataError(
+                f"'{name}' has {a.shape[1]} columns, index {col} is out of range",
+                str(path),
+                f"use an index below {a.shape[1]}",
+            )
         return a[:, col]
     if a.ndim == 0:
-        raise DataError(f"'{name}' is a scalar, not a time series", str(path),
-                        "select a variable that holds one value per sample")
+        raise DataError(
+            f"'{name}' is a scalar, not a time series", str(path), "select a variable that holds one value per sample"
+        )
     if a.ndim != 1:
-        raise DataError(f"'{name}' has shape {a.shape}; a column must be 1-D", str(path),
-                        f"pick one column with '{name}[0]', '{name}[1]', ...")
+        raise DataError(
+            f"'{name}' has shape {a.shape}; a column must be 1-D",
+            str(path),
+            f"pick one column with '{name}[0]', '{name}[1]', ...",
+        )
     return a
 
 
@@ -66,8 +76,13 @@ def _sniff_delimiter(first_lines: list[str]) -> str | None:
         return None if not any("," in ln for ln in first_lines) else ","
 
 
-def read_text(path: Path, selectors: Sequence[str | int], header: bool = True,
-              columns: Sequence[str] | None = None, delimiter: str | None = None) -> dict[str, np.ndarray]:
+def read_text(
+    path: Path,
+    selectors: Sequence[str | int],
+    header: bool = True,
+    columns: Sequence[str] | None = None,
+    delimiter: str | None = None,
+) -> dict[str, np.ndarray]:
     """Read selected columns of a delimited text file into float64 arrays."""
     with open(path, newline="", encoding="utf-8-sig") as fh:
         lines = fh.read().splitlines()
@@ -89,8 +104,11 @@ def read_text(path: Path, selectors: Sequence[str | int], header: bool = True,
         width = len(split(lines[0]))
         names = list(columns) if columns else [str(i) for i in range(width)]
         if columns and len(columns) != width:
-            raise DataError(f"data.columns names {len(columns)} columns but the file has {width}",
-                            str(path), f"give exactly {width} names")
+            raise DataError(
+                f"data.columns names {len(columns)} columns but the file has {width}",
+                str(path),
+                f"give exactly {width} names",
+            )
         body = lines
     if not body:
         raise DataError("the file has a header row but no samples", str(path), "check the file")
@@ -113,15 +131,21 @@ def read_text(path: Path, selectors: Sequence[str | int], header: bool = True,
         for key, col in wanted:
             text = cells[col].strip() if col < len(cells) else ""
             if not text:
-                raise DataError(f"column '{key}' has no value at line {row + first_data_line} (sample {row})",
-                                str(path), "fill or remove that line")
+                raise DataError(
+                    f"column '{key}' has no value at line {row + first_data_line} (sample {row})",
+                    str(path),
+                    "fill or remove that line",
+                )
             try:
                 out[key][row] = float(text)
             except ValueError:
                 raise DataError(
                     f"column '{key}' holds '{text}' at line {row + first_data_line}, which is not a number",
-                    str(path), "fix that cell, or set header: false if the file has no header row"
-                    if header and row == 0 else "fix or remove that line") from None
+                    str(path),
+                    "fix that cell, or set header: false if the file has no header row"
+                    if header and row == 0
+                    else "fix or remove that line",
+                ) from None
     return out
 
 
@@ -175,12 +199,19 @@ def read_mat(path: Path, selectors: Sequence[str]) -> dict[str, np.ndarray]:
     return out
 
 
-def read_columns(path: Path, selectors: Sequence[str | int], *, header: bool = True,
-                 columns: Sequence[str] | None = None, delimiter: str | None = None) -> dict[str, np.ndarray]:
+def read_columns(
+    path: Path,
+    selectors: Sequence[str | int],
+    *,
+    header: bool = True,
+    columns: Sequence[str] | None = None,
+    delimiter: str | None = None,
+) -> dict[str, np.ndarray]:
     """Read the selected columns of ``path``; the format follows the file suffix."""
     if not path.exists():
-        raise DataError("file not found", str(path),
-                        "check data.path (relative paths resolve against the spec file's folder)")
+        raise DataError(
+            "file not found", str(path), "check data.path (relative paths resolve against the spec file's folder)"
+        )
     if not path.is_file():
         raise DataError("is not a file", str(path), "point data.path to a data file")
     suffix = path.suffix.lower()
@@ -193,11 +224,11 @@ def read_columns(path: Path, selectors: Sequence[str | int], *, header: bool = T
     elif suffix == ".mat":
         cols = read_mat(path, [str(s) for s in selectors])
     else:
-        raise DataError(f"unsupported file type '{suffix}'", str(path),
-                        "use .csv/.txt/.tsv, .npz, .h5/.hdf5 or .mat")
+        raise DataError(f"unsupported file type '{suffix}'", str(path), "use .csv/.txt/.tsv, .npz, .h5/.hdf5 or .mat")
     lengths = {k: len(v) for k, v in cols.items()}
     if len(set(lengths.values())) > 1:
         detail = ", ".join(f"{k}: {n}" for k, n in lengths.items())
-        raise DataError(f"selected columns differ in length ({detail})", str(path),
-                        "select columns recorded on the same time grid")
+        raise DataError(
+            f"selected columns differ in length ({detail})", str(path), "select columns recorded on the same time grid"
+        )
     return cols

@@ -4,6 +4,7 @@ Rigs that log on an event loop (e.g. the pneumatic seal friction data) give non-
 stamps; discrete-time models need a uniform grid. With ``resample: h`` every selected column is
 interpolated linearly at t_0 + k h, k = 0 .. floor((t_end - t_0) / h).
 """
+
 from __future__ import annotations
 
 import warnings
@@ -32,8 +33,11 @@ def check_stamps(t: np.ndarray, where: str) -> np.ndarray:
     back = np.flatnonzero(dt <= 0)
     if back.size:
         k = int(back[0])
-        raise DataError(f"the time stamps do not increase at sample {k + 1} ({t[k]:g} then {t[k + 1]:g})", where,
-                        "sort the rows by time and remove repeated stamps")
+        raise DataError(
+            f"the time stamps do not increase at sample {k + 1} ({t[k]:g} then {t[k + 1]:g})",
+            where,
+            "sort the rows by time and remove repeated stamps",
+        )
     return dt
 
 
@@ -48,19 +52,28 @@ def uniform(t: np.ndarray, data: np.ndarray, step: float | None, where: str) -> 
         med = float(np.median(dt))
         worst = float(np.max(np.abs(dt - med)))
         if worst > UNIFORM_TOLERANCE * med:
-            raise DataError(f"the time stamps are not uniform (steps from {dt.min():.6g} to {dt.max():.6g} s, "
-                            f"median {med:.6g} s)", where, f"add 'resample: {med:.6g}' to interpolate onto a uniform grid")
+            raise DataError(
+                f"the time stamps are not uniform (steps from {dt.min():.6g} to {dt.max():.6g} s, median {med:.6g} s)",
+                where,
+                f"add 'resample: {med:.6g}' to interpolate onto a uniform grid",
+            )
         return data, float((t[-1] - t[0]) / (len(t) - 1))
     t0 = float(t[0])
     k = int(np.floor((float(t[-1]) - t0) / step + 1e-9)) + 1
     if k < 2:
-        raise DataError(f"the recording spans {t[-1] - t0:g} s, less than two resampling steps of {step:g} s", where,
-                        "use a smaller resample step")
+        raise DataError(
+            f"the recording spans {t[-1] - t0:g} s, less than two resampling steps of {step:g} s",
+            where,
+            "use a smaller resample step",
+        )
     grid = t0 + step * np.arange(k)
     out = np.column_stack([np.interp(grid, t, data[:, j]) for j in range(data.shape[1])])
     gaps = np.flatnonzero(dt > GAP_WARNING * step)
     if gaps.size:
         g = int(gaps[np.argmax(dt[gaps])])
-        warnings.warn(f"{where}: {gaps.size} gap(s) longer than {GAP_WARNING} resampling steps were bridged by linear "
-                      f"interpolation (largest {dt[g]:.6g} s after t = {t[g] - t0:.6g} s)", stacklevel=2)
+        warnings.warn(
+            f"{where}: {gaps.size} gap(s) longer than {GAP_WARNING} resampling steps were bridged by linear "
+            f"interpolation (largest {dt[g]:.6g} s after t = {t[g] - t0:.6g} s)",
+            stacklevel=2,
+        )
     return out, float(step)

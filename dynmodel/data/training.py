@@ -3,6 +3,7 @@
 Families see only recordings that hold training or validation samples, cut after the last of
 them; outputs inside test ranges are NaN so that no family can peek at the test split.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -84,8 +85,15 @@ def training_data(ds: Dataset, pre: Preprocessor) -> TrainingData:
         y = pre.outputs(rec.y[:end]).copy()
         for rr, a, b in ds.ranges.get("test", []):
             if rr == r and a < end:
-                y[a:min(b, end)] = np.nan
+                y[a : min(b, end)] = np.nan
         series.append(Series(pre.inputs(rec.u)[:end], y))
     segments = {s: [(index[r], a, b) for r, a, b in ds.scored(s)] for s in fit_splits if ds.ranges.get(s)}
-    return TrainingData(series, segments, pre.model_input_names, list(pre.output_names), ds.sampling_time,
-                        np.asarray(pre.output_offset, dtype=np.float64), np.asarray(pre.output_scale, dtype=np.float64))
+    return TrainingData(
+        series,
+        segments,
+        pre.model_input_names,
+        list(pre.output_names),
+        ds.sampling_time,
+        np.asarray(pre.output_offset, dtype=np.float64),
+        np.asarray(pre.output_scale, dtype=np.float64),
+    )

@@ -8,6 +8,7 @@ measure the gain on held-out data.
 
 Detectors are plugins (entry-point group ``dynmodel.detectors``), see :mod:`.detector`.
 """
+
 from __future__ import annotations
 
 from .detector import Detector, Extension, Finding, Settings, rank

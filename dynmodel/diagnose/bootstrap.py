@@ -3,6 +3,7 @@
 Both resample or average contiguous blocks, so the serial correlation of free-run errors is kept
 (an i.i.d. bootstrap would understate the spread by the integrated autocorrelation time).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,8 +19,9 @@ def block_length(e: np.ndarray) -> int:
     return int(np.clip(np.ceil(2 * tau), np.ceil(n ** (1 / 3)), max(n // 10, 1)))
 
 
-def paired_nmse(y: np.ndarray, before: np.ndarray, after: np.ndarray, rng: np.random.Generator,
-                resamples: int = 500) -> dict:
+def paired_nmse(
+    y: np.ndarray, before: np.ndarray, after: np.ndarray, rng: np.random.Generator, resamples: int = 500
+) -> dict:
     """Circular block bootstrap of test NMSE before / after (same blocks for both) and of the
     relative reduction 1 - NMSE_after / NMSE_before; mean, std and 95 % percentile interval."""
     y, e1, e2 = (np.asarray(a, dtype=np.float64).ravel() for a in (y, before, after))
@@ -34,12 +36,20 @@ def paired_nmse(y: np.ndarray, before: np.ndarray, after: np.ndarray, rng: np.ra
     red = 1 - n2 / n1
 
     def summary(x: np.ndarray) -> dict:
-        return {"mean": float(x.mean()), "std": float(x.std(ddof=1)),
-                "interval_95": [float(np.quantile(x, 0.025)), float(np.quantile(x, 0.975))]}
+        return {
+            "mean": float(x.mean()),
+            "std": float(x.std(ddof=1)),
+            "interval_95": [float(np.quantile(x, 0.025)), float(np.quantile(x, 0.975))],
+        }
 
-    return {"method": "circular block bootstrap of the test residuals", "block_length": L,
-            "resamples": resamples, "test_nmse_before": summary(n1), "test_nmse_after": summary(n2),
-            "relative_reduction": summary(red)}
+    return {
+        "method": "circular block bootstrap of the test residuals",
+        "block_length": L,
+        "resamples": resamples,
+        "test_nmse_before": summary(n1),
+        "test_nmse_after": summary(n2),
+        "relative_reduction": summary(red),
+    }
 
 
 MIN_BATCHES, MAX_BATCHES = 10, 40

@@ -7,6 +7,7 @@ in contiguous segments (a segment ends where a recording, a transient or a diver
 Out-of-sample tests fit on the training rows and judge on the *check* rows (the validation split;
 without one, the last 30 % of every segment).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -67,9 +68,9 @@ def segments_of(fit: Fit, splits: tuple[str, ...] = DIAGNOSIS_SPLITS) -> list[Se
         if has_validation:
             for pa, pb, split in parts:
                 if split == "validation":
-                    check[max(pa, a) - a:max(min(pb, b) - a, 0)] = True
+                    check[max(pa, a) - a : max(min(pb, b) - a, 0)] = True
         else:
-            check[int(round((1 - CHECK_FRACTION) * (b - a))):] = True
+            check[int(round((1 - CHECK_FRACTION) * (b - a))) :] = True
         r = fit.ds.recordings[rec]
         out.append(Segment(rec, a, b, r.u[a:b], r.y[a:b], fit.runs[rec].y[a:b], check))
     return out
@@ -157,7 +158,7 @@ class Context:
 
     def mse(self, k: int) -> float:
         e = np.concatenate(self.residuals(k))
-        return float(np.mean(e ** 2)) if e.size else 0.0
+        return float(np.mean(e**2)) if e.size else 0.0
 
     def output_var(self, k: int) -> float:
         y = np.concatenate(self.outputs(k))

@@ -6,6 +6,7 @@ to both series, so the filtered input is close to white and the cross-correlatio
 variance about 1/n_k (n_k the number of pairs at lag k); the remaining autocorrelation of both
 filtered series enters through Bartlett's formula var(r_ab(k)) = (1/n_k) sum_h r_aa(h) r_bb(h).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -21,7 +22,9 @@ def _centred(segments: list[np.ndarray]) -> list[np.ndarray]:
     return [np.asarray(s, dtype=np.float64) - mean for s in segments]
 
 
-def cross_sums(a_segments: list[np.ndarray], b_segments: list[np.ndarray], max_lag: int) -> tuple[np.ndarray, np.ndarray]:
+def cross_sums(
+    a_segments: list[np.ndarray], b_segments: list[np.ndarray], max_lag: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Sums S(k) = sum_t a_t b_{t-k} for k = 0..max_lag within every segment, and the pair counts."""
     sums = np.zeros(max_lag + 1)
     counts = np.zeros(max_lag + 1)
@@ -32,8 +35,8 @@ def cross_sums(a_segments: list[np.ndarray], b_segments: list[np.ndarray], max_l
         m = _fft_len(n)
         full = np.fft.irfft(np.fft.rfft(a, m) * np.conj(np.fft.rfft(b, m)), m)
         k = min(max_lag, n - 1)
-        sums[:k + 1] += full[:k + 1]
-        counts[:k + 1] += n - np.arange(k + 1)
+        sums[: k + 1] += full[: k + 1]
+        counts[: k + 1] += n - np.arange(k + 1)
     return sums, counts
 
 
@@ -58,7 +61,7 @@ def integrated_time(segments: list[np.ndarray], max_lag: int = 2000) -> float:
     r = autocorr(segments, min(max_lag, max(n // 4, 1)))
     r = np.nan_to_num(r[1:])
     stop = np.flatnonzero(r <= 0)
-    r = r[:stop[0]] if stop.size else r
+    r = r[: stop[0]] if stop.size else r
     return float(1.0 + 2.0 * r.sum())
 
 
@@ -72,10 +75,10 @@ def ar_coefficients(segments: list[np.ndarray], max_order: int = 30) -> np.ndarr
     best, best_aic = np.zeros(0), 0.0  # order 0: innovation variance 1 (normalised), log 1 = 0
     for p in range(1, max_order + 1):
         try:
-            phi = linalg.solve_toeplitz(r[:p], r[1:p + 1])
+            phi = linalg.solve_toeplitz(r[:p], r[1 : p + 1])
         except (linalg.LinAlgError, ValueError):
             break
-        sigma2 = 1.0 - float(phi @ r[1:p + 1])
+        sigma2 = 1.0 - float(phi @ r[1 : p + 1])
         if not np.isfinite(sigma2) or sigma2 <= 1e-12:
             break
         aic = n * np.log(sigma2) + 2 * p
@@ -95,13 +98,14 @@ def ar_filter(segments: list[np.ndarray], phi: np.ndarray) -> list[np.ndarray]:
             continue
         w = s[p:].copy()
         for i, c in enumerate(phi, start=1):
-            w -= c * s[p - i:len(s) - i]
+            w -= c * s[p - i : len(s) - i]
         out.append(w)
     return out
 
 
-def bartlett_sd(a_segments: list[np.ndarray], b_segments: list[np.ndarray], max_lag: int,
-                horizon: int = 50) -> np.ndarray:
+def bartlett_sd(
+    a_segments: list[np.ndarray], b_segments: list[np.ndarray], max_lag: int, horizon: int = 50
+) -> np.ndarray:
     """Standard deviations (k = 0..max_lag) of cross-correlation estimates of two independent series:
     sqrt((1/n_k) sum_{|h| <= H} r_aa(h) r_bb(h)), the sum never below 1."""
     n = sum(len(s) for s in a_segments)

@@ -19,6 +19,7 @@ README's calibration). (Fitting on the validation split and judging on the train
 second fold was tried and dropped: time terms fitted on the short split extrapolate badly and fake
 large shares.)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -41,8 +42,15 @@ class Dependence:
     coef: np.ndarray  # coefficients of the test features (fit rows, beyond the base)
 
     def to_json(self) -> dict:
-        return {"share": self.share, "p_value": self.p_value, "t": self.t, "batches": self.batches,
-                "in_sample_share": self.in_sample_share, "fit_rows": self.fit_rows, "check_rows": self.check_rows}
+        return {
+            "share": self.share,
+            "p_value": self.p_value,
+            "t": self.t,
+            "batches": self.batches,
+            "in_sample_share": self.in_sample_share,
+            "fit_rows": self.fit_rows,
+            "check_rows": self.check_rows,
+        }
 
 
 def _design(base: np.ndarray | None, n: int) -> np.ndarray:
@@ -63,7 +71,7 @@ def partial_share(e: np.ndarray, base: np.ndarray | None, features: np.ndarray) 
     Q0 = _basis(B)
     F = features - Q0 @ (Q0.T @ features)
     # columns the base already spans (up to rounding) carry no new information
-    kept = np.sqrt((F ** 2).sum(axis=0)) > 1e-8 * np.maximum(np.sqrt((features ** 2).sum(axis=0)), 1e-300)
+    kept = np.sqrt((F**2).sum(axis=0)) > 1e-8 * np.maximum(np.sqrt((features**2).sum(axis=0)), 1e-300)
     Q1 = _basis(F[:, kept], 1e-7)
     ec = e - e.mean()
     total = float(ec @ ec)
@@ -76,7 +84,7 @@ def partial_share(e: np.ndarray, base: np.ndarray | None, features: np.ndarray) 
 def _basis(X: np.ndarray, tol: float = 1e-9) -> np.ndarray:
     if X.shape[1] == 0:
         return X
-    scale = np.maximum(np.sqrt((X ** 2).sum(axis=0)), 1e-300)
+    scale = np.maximum(np.sqrt((X**2).sum(axis=0)), 1e-300)
     q, r, _ = qr(X / scale, mode="economic", pivoting=True)
     d = np.abs(np.diag(r))
     return q[:, d > tol * max(d.max(), 1e-300)]
@@ -99,9 +107,9 @@ def holdout_share(e: np.ndarray, base: np.ndarray | None, features: np.ndarray, 
     r1 = e[check] - X[check] @ g1
     total = float(r0 @ r0)
     share = float(1.0 - (r1 @ r1) / total) if total > 0 else 0.0
-    t, p, k = batch_means_test(r0 ** 2 - r1 ** 2)
+    t, p, k = batch_means_test(r0**2 - r1**2)
     inside = partial_share(e[fit], base[fit] if base is not None and base.size else None, features[fit])
-    return Dependence(share, p, t, k, inside, int(fit.sum()), int(check.sum()), g1[B.shape[1]:])
+    return Dependence(share, p, t, k, inside, int(fit.sum()), int(check.sum()), g1[B.shape[1] :])
 
 
 def lagged(segments: list[np.ndarray], lags: list[int]) -> list[np.ndarray]:
@@ -113,6 +121,6 @@ def lagged(segments: list[np.ndarray], lags: list[int]) -> list[np.ndarray]:
         for j, k in enumerate(lags):
             k = min(k, n)
             cols[:k, j] = x[0] if n else 0.0
-            cols[k:, j] = x[:n - k]
+            cols[k:, j] = x[: n - k]
         out.append(cols)
     return out

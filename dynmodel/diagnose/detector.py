@@ -6,6 +6,7 @@ the cause id they report. A finding's ``score`` is comparable across detectors: 
 free-run residual's mean square the cause accounts for (1 for causes that invalidate the free run
 as a whole: a diverging run, an unreliable model).
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
@@ -61,9 +62,15 @@ class Finding:
         return self.extensions[0] if self.extensions else None
 
     def to_json(self) -> dict[str, Any]:
-        return {"cause": self.cause, "score": self.score, "significant": self.significant, "summary": self.summary,
-                "evidence": self.evidence, "extension": self.extension.to_json() if self.extension else None,
-                "alternatives": [x.to_json() for x in self.extensions[1:]]}
+        return {
+            "cause": self.cause,
+            "score": self.score,
+            "significant": self.significant,
+            "summary": self.summary,
+            "evidence": self.evidence,
+            "extension": self.extension.to_json() if self.extension else None,
+            "alternatives": [x.to_json() for x in self.extensions[1:]],
+        }
 
 
 class Detector(ABC):
@@ -74,13 +81,21 @@ class Detector(ABC):
     priority: ClassVar[int] = 50
 
     @abstractmethod
-    def detect(self, ctx: "Context") -> Finding | None:
+    def detect(self, ctx: Context) -> Finding | None:
         """A finding (significant or not, with its evidence), or None when the test does not apply."""
 
-    def finding(self, ctx: "Context", score: float, significant: bool, summary: str, evidence: dict[str, Any],
-                extensions: list[Extension] | None = None) -> Finding:
-        return Finding(self.cause, float(score), bool(significant), summary, evidence, list(extensions or []),
-                       self.priority)
+    def finding(
+        self,
+        ctx: Context,
+        score: float,
+        significant: bool,
+        summary: str,
+        evidence: dict[str, Any],
+        extensions: list[Extension] | None = None,
+    ) -> Finding:
+        return Finding(
+            self.cause, float(score), bool(significant), summary, evidence, list(extensions or []), self.priority
+        )
 
 
 def rank(findings: list[Finding]) -> list[Finding]:

@@ -1,5 +1,6 @@
 """PNG figures of a diagnosis (matplotlib, Agg backend): what the free run gets wrong, the residual's
 statistics with their bounds, and the extended model against the baseline."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -25,7 +26,7 @@ def _main_recording(fit: Fit) -> int:
 
 def worst_windows(e: np.ndarray, width: int, count: int = 3) -> list[tuple[int, int]]:
     """Start and stop of the ``count`` non-overlapping windows of ``width`` samples with the largest mean e^2."""
-    e2 = np.nan_to_num(e ** 2, nan=np.nanmax(e ** 2) if np.isfinite(e).any() else 0.0)
+    e2 = np.nan_to_num(e**2, nan=np.nanmax(e**2) if np.isfinite(e).any() else 0.0)
     if len(e2) <= width:
         return [(0, len(e2))]
     score = np.convolve(e2, np.ones(width) / width, mode="valid")
@@ -35,7 +36,7 @@ def worst_windows(e: np.ndarray, width: int, count: int = 3) -> list[tuple[int, 
         if score[i] <= 0 or not np.isfinite(score[i]):
             break
         out.append((i, i + width))
-        score[max(0, i - width):i + width] = -np.inf
+        score[max(0, i - width) : i + width] = -np.inf
     return out
 
 
@@ -53,8 +54,9 @@ def overview(path: Path, fit: Fit, title: str) -> list[tuple[float, float]]:
     e[:warm] = 0.0
     width = max(20, r.n // 50)
     windows = worst_windows(e, width)
-    fig, axes = plt.subplots(2 * q, 1, figsize=(11, 5.2 * q), squeeze=False, sharex=True,
-                             gridspec_kw={"height_ratios": [2.2, 1] * q})
+    fig, axes = plt.subplots(
+        2 * q, 1, figsize=(11, 5.2 * q), squeeze=False, sharex=True, gridspec_kw={"height_ratios": [2.2, 1] * q}
+    )
     for k in range(q):
         top, bottom = axes[2 * k, 0], axes[2 * k + 1, 0]
         for split in fit.ds.splits():
@@ -76,7 +78,7 @@ def overview(path: Path, fit: Fit, title: str) -> list[tuple[float, float]]:
         top.legend(loc="upper right", fontsize=8)
         bottom.plot(t, r.y[:, k] - yhat[:, k], lw=0.5, color="#1f77b4")
         bottom.set_ylabel("measured - free run")
-        ek = (r.y[warm:, k] - yhat[warm:, k])
+        ek = r.y[warm:, k] - yhat[warm:, k]
         ek = ek[np.isfinite(ek)]
         if ek.size:
             span = float(np.max(np.abs(ek))) * 1.1 or 1.0
@@ -103,11 +105,23 @@ def residual(path: Path, fit: Fit, drift: dict[str, Any] | None, title: str) -> 
         ax.plot(t, e, lw=0.4, color="#9ecae1", label="residual" if i == 0 else None)
         if s.n > w:
             m = np.convolve(e, np.ones(w) / w, mode="valid")
-            ax.plot(t[w // 2:w // 2 + len(m)], m, lw=1.4, color="#08519c", label=f"moving mean ({w} samples)" if i == 0 else None)
+            ax.plot(
+                t[w // 2 : w // 2 + len(m)],
+                m,
+                lw=1.4,
+                color="#08519c",
+                label=f"moving mean ({w} samples)" if i == 0 else None,
+            )
         if drift:
             d = sum(c * time_function(fn, t) for c, fn in zip(drift["coefficients"], drift["terms"]))
-            ax.plot(t, d - d.mean() + e.mean(), lw=1.4, color="#d62728", ls="--",
-                    label="fitted drift (sensor-drift)" if i == 0 else None)
+            ax.plot(
+                t,
+                d - d.mean() + e.mean(),
+                lw=1.4,
+                color="#d62728",
+                ls="--",
+                label="fitted drift (sensor-drift)" if i == 0 else None,
+            )
     ax.axhline(0.0, color="#555", lw=0.6)
     ax.set_xlabel("time since the recording's start (s)")
     ax.set_ylabel(f"{fit.model.output_names[0]}: measured - free run")
@@ -118,8 +132,9 @@ def residual(path: Path, fit: Fit, drift: dict[str, Any] | None, title: str) -> 
     plt.close(fig)
 
 
-def correlations(path: Path, fit: Fit, max_lag: int, alpha: float, delay: dict[str, Any] | None,
-                 memory: int | None) -> None:
+def correlations(
+    path: Path, fit: Fit, max_lag: int, alpha: float, delay: dict[str, Any] | None, memory: int | None
+) -> None:
     """Residual autocorrelation with its 99 % white-noise bounds; prewhitened residual-input
     cross-correlation with the per-lag 99 % and the family-wise (Sidak) bounds."""
     plt = _pyplot()
@@ -154,8 +169,15 @@ def correlations(path: Path, fit: Fit, max_lag: int, alpha: float, delay: dict[s
             ax.axvspan(0, memory, color="#dddddd", alpha=0.6, label=f"model memory ({memory} samples)")
         if delay and delay.get("input") == name:
             k = delay["lag_samples"]
-            ax.annotate(f"lag {k} ({delay['lag_seconds']:.4g} s)", (k, c[k]), xytext=(10, 10), textcoords="offset points",
-                        fontsize=8, color="#d62728", arrowprops={"arrowstyle": "->", "color": "#d62728"})
+            ax.annotate(
+                f"lag {k} ({delay['lag_seconds']:.4g} s)",
+                (k, c[k]),
+                xytext=(10, 10),
+                textcoords="offset points",
+                fontsize=8,
+                color="#d62728",
+                arrowprops={"arrowstyle": "->", "color": "#d62728"},
+            )
         ax.set_ylabel(f"corr(e_t, {name}_t-k)")
         ax.set_xlabel(f"lag k (samples; prewhitened by AR({len(phi)}) of {name})")
         ax.legend(loc="upper right", fontsize=8)
@@ -180,8 +202,15 @@ def spectrum(path: Path, fit: Fit, alpha: float, peak: dict[str, Any] | None) ->
         ax.semilogy(f[1:], thr[1:], lw=0.8, color="#e6550d", ls="--", label=f"threshold (alpha {alpha:g}, Bonferroni)")
         if peak:
             ax.axvline(peak["frequency_hz"], color="#d62728", lw=0.8, ls=":")
-            ax.text(peak["frequency_hz"], 0.95, f" {peak['frequency_hz']:.4g} Hz", transform=ax.get_xaxis_transform(),
-                    color="#d62728", fontsize=8, va="top")
+            ax.text(
+                peak["frequency_hz"],
+                0.95,
+                f" {peak['frequency_hz']:.4g} Hz",
+                transform=ax.get_xaxis_transform(),
+                color="#d62728",
+                fontsize=8,
+                va="top",
+            )
         ax.set_xlabel("frequency (Hz)")
         ax.set_ylabel("power density")
         ax.legend(loc="upper right", fontsize=8)
@@ -213,8 +242,13 @@ def loops(path: Path, fit: Fit, curve: dict[str, Any] | None) -> None:
         ax = axes[j, 1]
         ax.plot(u, y - yhat, ".", ms=1.0, color="#1f77b4", alpha=0.4)
         if curve and curve.get("input") == name:
-            ax.plot(curve["curve"]["level"], np.asarray(curve["curve"]["residual"]) + float(np.mean(y - yhat)),
-                    color="#d62728", lw=1.5, label="static-nonlinearity fit")
+            ax.plot(
+                curve["curve"]["level"],
+                np.asarray(curve["curve"]["residual"]) + float(np.mean(y - yhat)),
+                color="#d62728",
+                lw=1.5,
+                label="static-nonlinearity fit",
+            )
             ax.legend(loc="upper left", fontsize=8)
         ax.set_xlabel(f"{name} level")
         ax.set_ylabel("residual")
@@ -234,13 +268,16 @@ def before_after(path: Path, base: Fit, final: Fit, gain: dict[str, Any]) -> Non
         r = base.ds.recordings[rec]
         e = r.y[a:b, 0] - base.runs[rec].y[a:b, 0]
         width = max(50, min(600, (b - a) // 8))
-        (w0, w1), = worst_windows(e, width, 1) or [(0, min(width, b - a))]
+        ((w0, w1),) = worst_windows(e, width, 1) or [(0, min(width, b - a))]
         t = np.arange(a + w0, a + w1) * st
-        ax.plot(t, r.y[a + w0:a + w1, 0], color="#333333", lw=1.0, label="measured")
-        ax.plot(t, base.runs[rec].y[a + w0:a + w1, 0], color="#d62728", lw=1.0, ls="--", label="baseline")
-        ax.plot(t, final.runs[rec].y[a + w0:a + w1, 0], color="#2ca02c", lw=1.0, label="extended")
-        lim = _limits(np.concatenate([r.y[a + w0:a + w1, 0], base.runs[rec].y[a + w0:a + w1, 0],
-                                      final.runs[rec].y[a + w0:a + w1, 0]]))
+        ax.plot(t, r.y[a + w0 : a + w1, 0], color="#333333", lw=1.0, label="measured")
+        ax.plot(t, base.runs[rec].y[a + w0 : a + w1, 0], color="#d62728", lw=1.0, ls="--", label="baseline")
+        ax.plot(t, final.runs[rec].y[a + w0 : a + w1, 0], color="#2ca02c", lw=1.0, label="extended")
+        lim = _limits(
+            np.concatenate(
+                [r.y[a + w0 : a + w1, 0], base.runs[rec].y[a + w0 : a + w1, 0], final.runs[rec].y[a + w0 : a + w1, 0]]
+            )
+        )
         if lim:
             ax.set_ylim(*lim)
         ax.set_xlabel("time (s)")
@@ -251,8 +288,7 @@ def before_after(path: Path, base: Fit, final: Fit, gain: dict[str, Any]) -> Non
     unc = gain.get("uncertainty") or {}
     err = [(unc.get(k) or {}).get("std") for k in ("test_nmse_before", "test_nmse_after")]
     vals = [before if before is not None else np.nan, after if after is not None else np.nan]
-    bx.bar([0, 1], vals, color=["#d62728", "#2ca02c"],
-           yerr=[e if e is not None else 0.0 for e in err], capsize=4)
+    bx.bar([0, 1], vals, color=["#d62728", "#2ca02c"], yerr=[e if e is not None else 0.0 for e in err], capsize=4)
     bx.set_xticks([0, 1], ["baseline" + (" (diverged)" if before is None else ""), "extended"])
     bx.set_ylabel("test NMSE (%)")
     if all(v is not None and v > 0 for v in vals) and max(vals) / min(vals) > 30:

@@ -1,4 +1,5 @@
 """Fits of a spec and of its extensions, sharing loaded data and caching results by spec content."""
+
 from __future__ import annotations
 
 import json

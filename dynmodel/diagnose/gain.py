@@ -5,6 +5,7 @@
 * Random fits: both specs are refitted with ``seeds`` seeds (the spec's seed and the next ones);
   the spread of the test NMSE and of the per-seed relative reduction is reported.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -31,17 +32,22 @@ def _reduction(before: float | None, after: float | None) -> float | None:
 def _summary(values: list[float]) -> dict[str, Any]:
     a = np.asarray(values, dtype=np.float64)
     finite = a[np.isfinite(a)]
-    return {"values": [None if not np.isfinite(v) else float(v) for v in a],
-            "mean": float(finite.mean()) if finite.size else None,
-            "std": float(finite.std(ddof=1)) if finite.size > 1 else None}
+    return {
+        "values": [None if not np.isfinite(v) else float(v) for v in a],
+        "mean": float(finite.mean()) if finite.size else None,
+        "std": float(finite.std(ddof=1)) if finite.size > 1 else None,
+    }
 
 
 def measure_gain(fitter: Fitter, base: Fit, final: Fit, settings) -> dict[str, Any]:
     """Test NMSE and MAX before and after, the relative reduction, and its uncertainty."""
     before, after = _test_metric(base, "nmse"), _test_metric(final, "nmse")
     gain: dict[str, Any] = {
-        "test_nmse_before": before, "test_nmse_after": after, "relative_reduction": _reduction(before, after),
-        "test_max_before": _test_metric(base, "max"), "test_max_after": _test_metric(final, "max"),
+        "test_nmse_before": before,
+        "test_nmse_after": after,
+        "relative_reduction": _reduction(before, after),
+        "test_max_before": _test_metric(base, "max"),
+        "test_max_after": _test_metric(final, "max"),
         "baseline_diverged_on_test": bool((base.metrics.get("test") or {}).get("unstable_from")),
         "extended_diverged_on_test": bool((final.metrics.get("test") or {}).get("unstable_from")),
     }
@@ -56,8 +62,10 @@ def measure_gain(fitter: Fitter, base: Fit, final: Fit, settings) -> dict[str, A
             gain["uncertainty"] = {"method": "none: a free run diverged on the test split"}
             return gain
         rng = np.random.default_rng([settings.seed, 0x6761696E])
-        per_output = [paired_nmse(y[:, k], y[:, k] - y1[:, k], y[:, k] - y2[:, k], rng, settings.bootstrap)
-                      for k in range(y.shape[1])]
+        per_output = [
+            paired_nmse(y[:, k], y[:, k] - y1[:, k], y[:, k] - y2[:, k], rng, settings.bootstrap)
+            for k in range(y.shape[1])
+        ]
         gain["uncertainty"] = per_output[0] if len(per_output) == 1 else {"per_output": per_output}
         return gain
     seeds = [int(base.spec.seed) + i for i in range(max(1, settings.seeds))]
@@ -73,7 +81,11 @@ def measure_gain(fitter: Fitter, base: Fit, final: Fit, settings) -> dict[str, A
         na.append(np.inf if a is None else a)
         r = _reduction(b, a)
         red.append(np.nan if r is None else r)
-    gain["uncertainty"] = {"method": f"refits with {len(nb)} seeds ({seeds[0]}..{seeds[-1]})", "seeds": seeds,
-                           "test_nmse_before": _summary(nb), "test_nmse_after": _summary(na),
-                           "relative_reduction": _summary(red)}
+    gain["uncertainty"] = {
+        "method": f"refits with {len(nb)} seeds ({seeds[0]}..{seeds[-1]})",
+        "seeds": seeds,
+        "test_nmse_before": _summary(nb),
+        "test_nmse_after": _summary(na),
+        "relative_reduction": _summary(red),
+    }
     return gain

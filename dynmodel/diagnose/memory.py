@@ -7,6 +7,7 @@ mean absolute response D(h) at h samples after the impulses gives the memory: th
 D(h) >= 1 % of max D. It is measured per input channel on the first diagnosis recording; the
 largest over channels is returned (at most ``max_lag``).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,7 +46,7 @@ def impulse_response(fit: Fit, j: int, spacing: int, count: int = 6) -> np.ndarr
     if not np.isfinite(diff).all():
         diff = np.nan_to_num(diff, nan=1e6, posinf=1e6)
     d = diff.sum(axis=1)
-    stack = np.stack([d[t:t + spacing] for t in times])
+    stack = np.stack([d[t : t + spacing] for t in times])
     return stack.mean(axis=0)
 
 

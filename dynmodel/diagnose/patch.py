@@ -4,6 +4,7 @@ merge(target, patch): a mapping in the patch merges into the target's mapping ke
 deletes a key, anything else (numbers, strings, lists) replaces the target's value. A patched
 spec is validated again, so an extension is always a spec a user could have written.
 """
+
 from __future__ import annotations
 
 import copy

@@ -1,5 +1,6 @@
 """The diagnosis as files: a Markdown report with PNG figures (opens offline), the extended spec as
 YAML (runnable with ``dynmodel fit``) and the JSON summary."""
+
 from __future__ import annotations
 
 import json
@@ -60,8 +61,10 @@ def write_extended(result: Diagnosis, folder: Path) -> Path | None:
         return None
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / EXTENDED
-    head = (f"# written by dynmodel diagnose: {result.name} extended for "
-            f"{', '.join(c.cause for c in result.applied)}\n# run it with: dynmodel fit {path.name}\n")
+    head = (
+        f"# written by dynmodel diagnose: {result.name} extended for "
+        f"{', '.join(c.cause for c in result.applied)}\n# run it with: dynmodel fit {path.name}\n"
+    )
     path.write_text(head + yaml.safe_dump(jsonable(spec), sort_keys=False))
     return path
 
@@ -84,11 +87,14 @@ def _metrics_rows(metrics: dict[str, Any]) -> list[str]:
             continue
         if m.get("unstable_from"):
             u = m["unstable_from"]
-            rows.append(f"| {split} | {m['samples']} | unstable from t = {u['time']:.6g} s (sample {u['sample']}) | – | "
-                        f"{_fmt(m.get('nmse_1'))} |")
+            rows.append(
+                f"| {split} | {m['samples']} | unstable from t = {u['time']:.6g} s (sample {u['sample']}) | – | "
+                f"{_fmt(m.get('nmse_1'))} |"
+            )
         else:
-            rows.append(f"| {split} | {m['samples']} | {_fmt(m.get('nmse'))} | {_fmt(m.get('max'))} | "
-                        f"{_fmt(m.get('nmse_1'))} |")
+            rows.append(
+                f"| {split} | {m['samples']} | {_fmt(m.get('nmse'))} | {_fmt(m.get('max'))} | {_fmt(m.get('nmse_1'))} |"
+            )
     return rows
 
 
@@ -102,10 +108,14 @@ def _gain_lines(gain: dict[str, Any] | None) -> list[str]:
         return ["No extension was measured."]
     before, after = gain.get("test_nmse_before"), gain.get("test_nmse_after")
     red = gain.get("relative_reduction")
-    lines = ["| | baseline | extended |", "|---|---|---|",
-             f"| test NMSE % | {'diverged' if gain.get('baseline_diverged_on_test') else _fmt(before)} | "
-             f"{'diverged' if gain.get('extended_diverged_on_test') else _fmt(after)} |",
-             f"| test MAX | {_fmt(gain.get('test_max_before'))} | {_fmt(gain.get('test_max_after'))} |", ""]
+    lines = [
+        "| | baseline | extended |",
+        "|---|---|---|",
+        f"| test NMSE % | {'diverged' if gain.get('baseline_diverged_on_test') else _fmt(before)} | "
+        f"{'diverged' if gain.get('extended_diverged_on_test') else _fmt(after)} |",
+        f"| test MAX | {_fmt(gain.get('test_max_before'))} | {_fmt(gain.get('test_max_after'))} |",
+        "",
+    ]
     if red is not None:
         lines.append(f"Relative reduction of the test NMSE: **{100 * red:.1f} %**.")
     elif gain.get("baseline_diverged_on_test") and not gain.get("extended_diverged_on_test"):
@@ -124,8 +134,10 @@ def _gain_lines(gain: dict[str, Any] | None) -> list[str]:
         if rr.get("values"):
             text += f", per seed {', '.join(_pct(v) for v in rr['values'])}"
         tb, ta = unc.get("test_nmse_before") or {}, unc.get("test_nmse_after") or {}
-        text += (f"; test NMSE {_fmt(tb.get('mean'))} ± {_fmt(tb.get('std'))} % before, "
-                 f"{_fmt(ta.get('mean'))} ± {_fmt(ta.get('std'))} % after.")
+        text += (
+            f"; test NMSE {_fmt(tb.get('mean'))} ± {_fmt(tb.get('std'))} % before, "
+            f"{_fmt(ta.get('mean'))} ± {_fmt(ta.get('std'))} % after."
+        )
         lines.append(text)
     elif unc.get("method"):
         lines.append(f"Uncertainty: {unc['method']}.")
@@ -150,12 +162,15 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
     osc = checks.get("unmodeled-oscillation")
     curve = checks.get("static-nonlinearity")
     windows = figures.overview(folder / "fit.png", base, f"{result.name}: baseline free run")
-    figures.residual(folder / "residual.png", base, drift.evidence if drift and drift.significant else None,
-                     "residual of the baseline's free run")
+    figures.residual(
+        folder / "residual.png",
+        base,
+        drift.evidence if drift and drift.significant else None,
+        "residual of the baseline's free run",
+    )
     longest = max((s.n for s in segments_of(base)), default=10)
     max_lag = int(result.settings.max_lag or max(1, min(1000, longest // 5)))
-    figures.correlations(folder / "correlation.png", base, max_lag, alpha,
-                         delay.evidence if delay else None, memory)
+    figures.correlations(folder / "correlation.png", base, max_lag, alpha, delay.evidence if delay else None, memory)
     figures.spectrum(folder / "spectrum.png", base, alpha, osc.evidence if osc and osc.significant else None)
     figures.loops(folder / "loops.png", base, curve.evidence if curve and curve.significant else None)
     final = result.final
@@ -169,15 +184,24 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
         lines += [f"**Named cause: `{top.cause}`** (score {top.score:.3g}) — {top.summary}.", ""]
     else:
         lines += ["**Adequate**: no cause is significant; nothing is proposed.", ""]
-    lines += [f"Model `{spec.model.family}`, cost `{spec.cost}`, {len(base.ds.recordings)} recording(s), inputs "
-              f"{base.model.input_names}, output {base.model.output_names}, sampling time {base.ds.sampling_time:g} s; "
-              f"model memory {memory if memory is not None else '–'} samples. Diagnosis took {result.seconds:.1f} s.", "",
-              "## Baseline", "", "| split | samples | NMSE % | MAX | NMSE one-step % |", "|---|---|---|---|---|"]
+    lines += [
+        f"Model `{spec.model.family}`, cost `{spec.cost}`, {len(base.ds.recordings)} recording(s), inputs "
+        f"{base.model.input_names}, output {base.model.output_names}, sampling time {base.ds.sampling_time:g} s; "
+        f"model memory {memory if memory is not None else '–'} samples. Diagnosis took {result.seconds:.1f} s.",
+        "",
+        "## Baseline",
+        "",
+        "| split | samples | NMSE % | MAX | NMSE one-step % |",
+        "|---|---|---|---|---|",
+    ]
     lines += _metrics_rows(base.metrics)
     lines += ["", "![measured vs free run, worst windows marked](fit.png)", ""]
     if windows:
-        lines.append("Worst windows (largest mean squared error): " +
-                     ", ".join(f"[{a:.6g}, {b:.6g}] s" for a, b in windows) + ".")
+        lines.append(
+            "Worst windows (largest mean squared error): "
+            + ", ".join(f"[{a:.6g}, {b:.6g}] s" for a, b in windows)
+            + "."
+        )
         lines.append("")
     lines += ["## Findings", ""]
     if result.findings:
@@ -187,40 +211,69 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
             lines.append(f"| {i} | `{f.cause}` | {f.score:.3g} | {_p(f.evidence)} | {f.summary} | {ext} |")
     else:
         lines.append("None significant.")
-    lines += ["", "Score: the share of the free-run residual's mean square the cause accounts for (1: the free run "
-              "as a whole is invalid). A cause is named when p < alpha "
-              f"({alpha:g}), its score is at least {result.settings.min_share:g} and it accounts for at least "
-              f"{100 * result.settings.min_effect:g} % of the output variance.", "", "### Every check", "",
-              "| cause | significant | score | p | summary |", "|---|---|---|---|---|"]
+    lines += [
+        "",
+        "Score: the share of the free-run residual's mean square the cause accounts for (1: the free run "
+        "as a whole is invalid). A cause is named when p < alpha "
+        f"({alpha:g}), its score is at least {result.settings.min_share:g} and it accounts for at least "
+        f"{100 * result.settings.min_effect:g} % of the output variance.",
+        "",
+        "### Every check",
+        "",
+        "| cause | significant | score | p | summary |",
+        "|---|---|---|---|---|",
+    ]
     for f in result.checks:
-        lines.append(f"| `{f.cause}` | {'yes' if f.significant else 'no'} | {f.score:.3g} | {_p(f.evidence)} | {f.summary} |")
-    lines += ["", "![residual over time](residual.png)", "",
-              "![residual auto- and cross-correlation with 99 % bounds](correlation.png)", "",
-              "![residual spectrum](spectrum.png)", "", "![output against input](loops.png)", ""]
+        lines.append(
+            f"| `{f.cause}` | {'yes' if f.significant else 'no'} | {f.score:.3g} | {_p(f.evidence)} | {f.summary} |"
+        )
+    lines += [
+        "",
+        "![residual over time](residual.png)",
+        "",
+        "![residual auto- and cross-correlation with 99 % bounds](correlation.png)",
+        "",
+        "![residual spectrum](spectrum.png)",
+        "",
+        "![output against input](loops.png)",
+        "",
+    ]
     if result.rounds[0].candidates:
         lines += ["## Extensions measured", ""]
         for rnd in result.rounds:
             if not rnd.candidates:
                 continue
             split = "validation" if "validation" in rnd.fit.metrics else "train"
-            lines += [f"Round {rnd.index} ({rnd.verdict}; chosen on the {split} NMSE): {rnd.outcome}.", "",
-                      f"| extension | {split} NMSE % | test NMSE % | test MAX |", "|---|---|---|---|"]
+            lines += [
+                f"Round {rnd.index} ({rnd.verdict}; chosen on the {split} NMSE): {rnd.outcome}.",
+                "",
+                f"| extension | {split} NMSE % | test NMSE % | test MAX |",
+                "|---|---|---|---|",
+            ]
             for c in rnd.candidates:
                 mark = " **(chosen)**" if c is rnd.chosen else ""
                 if c.fit is None:
                     lines.append(f"| {c.extension.summary}{mark} | failed: {c.error} | – | – |")
                 else:
                     t = c.fit.metrics.get("test") or {}
-                    lines.append(f"| {c.extension.summary}{mark} | {_fmt(c.score(split))} | "
-                                 f"{_fmt(t.get('nmse')) if t.get('nmse') is not None else 'diverged'} | {_fmt(t.get('max'))} |")
+                    lines.append(
+                        f"| {c.extension.summary}{mark} | {_fmt(c.score(split))} | "
+                        f"{_fmt(t.get('nmse')) if t.get('nmse') is not None else 'diverged'} | {_fmt(t.get('max'))} |"
+                    )
             lines.append("")
         lines += ["## Gain on the held-out test split", ""] + _gain_lines(result.gain) + [""]
         if final is not None and result.gain:
             lines += ["![before and after](before_after.png)", ""]
         ext = extended_spec(result, folder)
         if ext is not None:
-            lines += [f"## Extended spec (`{EXTENDED}`, run with `dynmodel fit {EXTENDED}`)", "", "```yaml",
-                      yaml.safe_dump(jsonable(ext), sort_keys=False).rstrip(), "```", ""]
+            lines += [
+                f"## Extended spec (`{EXTENDED}`, run with `dynmodel fit {EXTENDED}`)",
+                "",
+                "```yaml",
+                yaml.safe_dump(jsonable(ext), sort_keys=False).rstrip(),
+                "```",
+                "",
+            ]
     if result.notes:
         lines += ["## Notes", ""] + [f"- {n}" for n in result.notes] + [""]
     path = folder / REPORT

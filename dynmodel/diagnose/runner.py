@@ -9,6 +9,7 @@ measured test output) ranks after every candidate that stays stable. A round sto
 nothing is significant (adequate), when no candidate lowers the validation NMSE by at least
 ``MIN_GAIN`` (relative), or after ``rounds``.
 """
+
 from __future__ import annotations
 
 import time
@@ -80,12 +81,17 @@ class Round:
         return self.significant[0].cause if self.significant else "adequate"
 
     def to_json(self) -> dict[str, Any]:
-        return {"round": self.index, "verdict": self.verdict, "model_memory_samples": self.memory,
-                "findings": [f.to_json() for f in self.significant],
-                "candidates": [c.to_json() for c in self.candidates],
-                "chosen": None if self.chosen is None else self.chosen.to_json(), "accepted": self.accepted,
-                "outcome": self.outcome,
-                "seconds": self.seconds}
+        return {
+            "round": self.index,
+            "verdict": self.verdict,
+            "model_memory_samples": self.memory,
+            "findings": [f.to_json() for f in self.significant],
+            "candidates": [c.to_json() for c in self.candidates],
+            "chosen": None if self.chosen is None else self.chosen.to_json(),
+            "accepted": self.accepted,
+            "outcome": self.outcome,
+            "seconds": self.seconds,
+        }
 
 
 @dataclass
@@ -141,14 +147,22 @@ class Diagnosis:
         extended["extensions"] = [{"cause": c.cause, **c.extension.to_json()} for c in self.applied]
         extended["rounds"] = [r.to_json() for r in self.rounds]
         return {
-            "baseline": {"metrics": base.metrics, "verdict": self.verdict, "family": base.spec.model.family,
-                         "cost": base.spec.cost, "model_memory_samples": self.rounds[0].memory,
-                         "checks": [f.to_json() for f in self.checks], "settings": self.settings.to_json(),
-                         "notes": self.notes, "seconds": self.seconds},
+            "baseline": {
+                "metrics": base.metrics,
+                "verdict": self.verdict,
+                "family": base.spec.model.family,
+                "cost": base.spec.cost,
+                "model_memory_samples": self.rounds[0].memory,
+                "checks": [f.to_json() for f in self.checks],
+                "settings": self.settings.to_json(),
+                "notes": self.notes,
+                "seconds": self.seconds,
+            },
             "findings": [f.to_json() for f in self.findings],
             "extended": extended,
-            "gain": self.gain if self.gain is not None else {"test_nmse_before": _test(base, "nmse"),
-                                                             "test_nmse_after": None, "relative_reduction": None},
+            "gain": self.gain
+            if self.gain is not None
+            else {"test_nmse_before": _test(base, "nmse"), "test_nmse_after": None, "relative_reduction": None},
         }
 
 
@@ -157,12 +171,17 @@ def _test(fit: Fit, metric: str) -> float | None:
     return m.get(metric)
 
 
-def detect(fit: Fit, settings: Settings, fitter: Fitter, progress: Progress = no_progress) -> tuple[list[Finding], int | None]:
+def detect(
+    fit: Fit, settings: Settings, fitter: Fitter, progress: Progress = no_progress
+) -> tuple[list[Finding], int | None]:
     """Every installed detector on one fitted model; findings ranked (significant first, by score)."""
     ctx = Context(fit, settings, fitter, progress)
     if ctx.n < 50:
-        raise DynmodelError(f"only {ctx.n} scored train/validation samples before the free run ends",
-                            fit.spec.source, "provide more data (the diagnosis needs the free-running residual)")
+        raise DynmodelError(
+            f"only {ctx.n} scored train/validation samples before the free run ends",
+            fit.spec.source,
+            "provide more data (the diagnosis needs the free-running residual)",
+        )
     findings = []
     for cause, cls in registry.detectors().items():
         progress("detect", None, cause)
@@ -190,8 +209,9 @@ def _candidates(findings: list[Finding], limit: int) -> list[tuple[str, Extensio
     return out[:limit]
 
 
-def diagnose(raw: dict[str, Any], source: str, base_dir: Path, settings: Settings | None = None,
-             progress: Progress = no_progress) -> Diagnosis:
+def diagnose(
+    raw: dict[str, Any], source: str, base_dir: Path, settings: Settings | None = None, progress: Progress = no_progress
+) -> Diagnosis:
     """Diagnose the spec mapping ``raw`` (as loaded from ``source``, relative paths against ``base_dir``)."""
     settings = settings or Settings()
     t_start = time.perf_counter()
@@ -229,8 +249,7 @@ def diagnose(raw: dict[str, Any], source: str, base_dir: Path, settings: Setting
                 else:
                     rnd.chosen = best
                     improved = np.isfinite(new) and (not np.isfinite(now) or new < (1 - MIN_GAIN) * now)
-                    rnd.outcome = (f"{split} NMSE {now:.4g} % -> {new:.4g} %" +
-                                   ("" if improved else " (no gain: stop)"))
+                    rnd.outcome = f"{split} NMSE {now:.4g} % -> {new:.4g} %" + ("" if improved else " (no gain: stop)")
                     if improved:
                         rnd.accepted = True
                         current = best.fit

@@ -13,6 +13,7 @@ significant at level alpha when its F tail is below alpha / m (Bonferroni). The 
 then refined on a spectrum with four times the resolution (longer Welch segments, within 1.5 coarse
 bins of the peak) by a parabola through log P at its maximum and the two neighbouring bins.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -56,8 +57,8 @@ def background(power: np.ndarray, width: int) -> np.ndarray:
     out = np.full(n, np.nan)
     need = max(1, width // 3)
     for k in range(n):
-        left = power[max(0, k - GAP - width):max(0, k - GAP)]
-        right = power[min(n, k + GAP + 1):min(n, k + GAP + 1 + width)]
+        left = power[max(0, k - GAP - width) : max(0, k - GAP)]
+        right = power[min(n, k + GAP + 1) : min(n, k + GAP + 1 + width)]
         if len(left) >= need and len(right) >= need:
             out[k] = max(np.median(left), np.median(right))
     return out
@@ -74,14 +75,22 @@ def welch(segments: list[np.ndarray], nperseg: int | None = None, width: int = 1
         return None
     total, count, freq = None, 0, None
     for s in usable:
-        f, p = signal.welch(s - s.mean(), fs=1.0, window="hann", nperseg=nperseg, noverlap=nperseg // 2,
-                            detrend="constant", scaling="density", average="mean")
+        f, p = signal.welch(
+            s - s.mean(),
+            fs=1.0,
+            window="hann",
+            nperseg=nperseg,
+            noverlap=nperseg // 2,
+            detrend="constant",
+            scaling="density",
+            average="mean",
+        )
         k = 1 + (len(s) - nperseg) // (nperseg // 2)
         total = p * k if total is None else total + p * k
         count += k
         freq = f
     power = total / count
-    dof = 2.0 * count / (1.0 + 2.0 * HANN_OVERLAP_CORRELATION ** 2)
+    dof = 2.0 * count / (1.0 + 2.0 * HANN_OVERLAP_CORRELATION**2)
     back = background(power, width) / (stats.chi2.median(dof) / dof)
     return Spectrum(freq, power, back, dof, dof * width / 2 * (2 / np.pi))
 
@@ -89,7 +98,7 @@ def welch(segments: list[np.ndarray], nperseg: int | None = None, width: int = 1
 def _parabola(freq: np.ndarray, power: np.ndarray, k: int) -> float:
     if k <= 0 or k >= len(freq) - 1:
         return float(freq[k])
-    a, b, c = np.log(np.maximum(power[k - 1:k + 2], np.finfo(float).tiny))
+    a, b, c = np.log(np.maximum(power[k - 1 : k + 2], np.finfo(float).tiny))
     den = a - 2 * b + c
     delta = 0.5 * (a - c) / den if den < 0 else 0.0
     return float(freq[k] + np.clip(delta, -0.5, 0.5) * (freq[1] - freq[0]))

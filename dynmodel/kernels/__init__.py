@@ -1,8 +1,18 @@
 """Compiled (numba) hot loops. Every kernel here has a plain-numpy twin in the tests or benchmarks."""
-from .tanh import tanh_vec
-from .network import (dense_step_batch, dense_tangent_batch, drive, drive_features, free_run, step_batch,
-                      tangent_batch)
-from .spread import group_spread, row_distances
 
-__all__ = ["tanh_vec", "drive", "drive_features", "free_run", "step_batch", "tangent_batch", "dense_step_batch",
-           "dense_tangent_batch", "group_spread", "row_distances"]
+from .network import dense_step_batch, dense_tangent_batch, drive, drive_features, free_run, step_batch, tangent_batch
+from .spread import group_spread, row_distances
+from .tanh import tanh_vec
+
+__all__ = [
+    "tanh_vec",
+    "drive",
+    "drive_features",
+    "free_run",
+    "step_batch",
+    "tangent_batch",
+    "dense_step_batch",
+    "dense_tangent_batch",
+    "group_spread",
+    "row_distances",
+]

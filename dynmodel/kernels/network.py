@@ -6,6 +6,7 @@
 eq. 6.21). ``C`` is sparse (CSR arrays ``indptr, indices, data``), ``B`` dense. ``v_t`` is the
 drive: the external input, plus the fed-back output in the external mode (eq. 5.42 / 5.43).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -73,8 +74,7 @@ def drive_features(indptr, indices, data, B, c0, a, g, V, x0, direct, F):
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
-def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0,
-             store_states):
+def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states):
     """External-mode run: the network is fed its own past output.
 
     Drive ``v_t = [u_t, f_t]`` with feedback ``f_t``:

@@ -1,4 +1,5 @@
 """Distances between replicas, computed while they run (thesis definition 4.4)."""
+
 from __future__ import annotations
 
 import numpy as np

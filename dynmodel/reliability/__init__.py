@@ -1,9 +1,10 @@
 """Reliability check (thesis 4.4.1, 5.3.1, 5.3.2): does a driven system forget its initial state?
 
-    from dynmodel.reliability import check, check_model, Settings
-    report = check_model(dynmodel.load("m.h5"))        # or check(SomeDrivenSystem(...))
-    report.verdict.verdict                              # 'reliable' | 'unreliable' | 'inconclusive'
+from dynmodel.reliability import check, check_model, Settings
+report = check_model(dynmodel.load("m.h5"))        # or check(SomeDrivenSystem(...))
+report.verdict.verdict                              # 'reliable' | 'unreliable' | 'inconclusive'
 """
+
 from __future__ import annotations
 
 from .check import Report, Settings, check
@@ -18,5 +19,16 @@ def check_model(model, settings: Settings | None = None, progress=None, source: 
     return check(model_system(model, source), settings, progress or no_progress)
 
 
-__all__ = ["check", "check_model", "Settings", "Report", "DrivenSystem", "ClosedLoop", "Evidence", "InputDomain",
-           "Sine", "SystemParams", "TestSystem"]
+__all__ = [
+    "check",
+    "check_model",
+    "Settings",
+    "Report",
+    "DrivenSystem",
+    "ClosedLoop",
+    "Evidence",
+    "InputDomain",
+    "Sine",
+    "SystemParams",
+    "TestSystem",
+]

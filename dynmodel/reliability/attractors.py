@@ -9,6 +9,7 @@ exponent is positive, a limit cycle / quasi-periodic motion if it is about zero,
 if negative). Responses on the same cycle are that cycle in different *phases* (the regular and
 the anti-cycle of figure 5.4): they too give different outputs.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -43,8 +44,13 @@ class Attractor:
     label: str = ""
 
     def to_json(self, dt: float, continuous: bool) -> dict[str, Any]:
-        out: dict[str, Any] = {"kind": self.kind, "label": self.label, "replicas": self.replicas,
-                               "phases": self.phases, "period": self.period}
+        out: dict[str, Any] = {
+            "kind": self.kind,
+            "label": self.label,
+            "replicas": self.replicas,
+            "phases": self.phases,
+            "period": self.period,
+        }
         if self.kind != "non-periodic":
             out["points"] = self.points.tolist()
         else:
@@ -65,9 +71,13 @@ class LevelResult:
     spread: float = 0.0  # largest distance between the replicas' end states
 
     def to_json(self, dt: float, continuous: bool) -> dict[str, Any]:
-        return {"input": self.input.tolist(), "status": self.status, "responses": self.responses,
-                "spread": self.spread,
-                "attractors": [a.to_json(dt, continuous) for a in self.attractors]}
+        return {
+            "input": self.input.tolist(),
+            "status": self.status,
+            "responses": self.responses,
+            "spread": self.spread,
+            "attractors": [a.to_json(dt, continuous) for a in self.attractors],
+        }
 
 
 def _clusters(F: np.ndarray, tol: float) -> list[list[int]]:
@@ -107,8 +117,17 @@ def _orbit(system: DrivenSystem, x: np.ndarray, v: np.ndarray, p: int) -> np.nda
     return np.array(pts)
 
 
-def _settle(system: DrivenSystem, X: np.ndarray, V: np.ndarray, R: int, steps: int, tol: float,
-            progress: Progress, done: float, share: float) -> np.ndarray:
+def _settle(
+    system: DrivenSystem,
+    X: np.ndarray,
+    V: np.ndarray,
+    R: int,
+    steps: int,
+    tol: float,
+    progress: Progress,
+    done: float,
+    share: float,
+) -> np.ndarray:
     """Run every level ``steps`` steps; a level stops early once all its replicas sit within
     ``tol`` of each other and hardly moved in the last step (one fixed point, located well within
     the tolerance even when the contraction is slow)."""
@@ -129,15 +148,23 @@ def _settle(system: DrivenSystem, X: np.ndarray, V: np.ndarray, R: int, steps: i
         t += chunk
         move = np.empty(len(rows))
         row_distances(Xl, prev, move)
-        group_spread(Xl, len(live), R, spread[:len(live)])
-        settled = (spread[:len(live)] <= tol) & (move.reshape(-1, R).max(axis=1) <= SETTLE_MOVE * tol)
+        group_spread(Xl, len(live), R, spread[: len(live)])
+        settled = (spread[: len(live)] <= tol) & (move.reshape(-1, R).max(axis=1) <= SETTLE_MOVE * tol)
         live = live[~settled]
         progress("constant scan", done + share * t / steps, f"{len(live) * R} replicas unsettled, step {t}/{steps}")
     return X
 
 
-def _analyse(system: DrivenSystem, level: np.ndarray, F: np.ndarray, per: np.ndarray, v: np.ndarray,
-             tol: float, near: float, rng: np.random.Generator) -> LevelResult:
+def _analyse(
+    system: DrivenSystem,
+    level: np.ndarray,
+    F: np.ndarray,
+    per: np.ndarray,
+    v: np.ndarray,
+    tol: float,
+    near: float,
+    rng: np.random.Generator,
+) -> LevelResult:
     if not np.isfinite(F).all():
         return LevelResult(level, [], 0, "diverged", float("inf"))
     groups = _clusters(F, tol)
@@ -168,10 +195,23 @@ def _analyse(system: DrivenSystem, level: np.ndarray, F: np.ndarray, per: np.nda
         ex = lyapunov.exponents(system, Vt, F[reps], 1, rng)
         lam = max((e.largest for e in ex), default=np.nan)
         sign = max((e.sign() for e in ex), key=["undefined", "negative", "zero", "positive"].index)
-        label = {"positive": "chaotic", "zero": "limit cycle or quasi-periodic",
-                 "negative": "not settled (still converging)", "undefined": "undefined"}[sign]
-        attractors.append(Attractor("non-periodic", sum(len(g) for g in nonper), len(nonper), None,
-                                    F[[g[0] for g in nonper[:1]]], float(lam), label))
+        label = {
+            "positive": "chaotic",
+            "zero": "limit cycle or quasi-periodic",
+            "negative": "not settled (still converging)",
+            "undefined": "undefined",
+        }[sign]
+        attractors.append(
+            Attractor(
+                "non-periodic",
+                sum(len(g) for g in nonper),
+                len(nonper),
+                None,
+                F[[g[0] for g in nonper[:1]]],
+                float(lam),
+                label,
+            )
+        )
     responses = len(groups)
     # distinct "attractors" closer than `near` to each other are one slowly converging attractor
     close = False
@@ -193,8 +233,15 @@ def _analyse(system: DrivenSystem, level: np.ndarray, F: np.ndarray, per: np.nda
     return LevelResult(level, attractors, responses, status, max_pairwise(F))
 
 
-def scan(system: DrivenSystem, levels: list[np.ndarray], X0: np.ndarray, steps: int, tol: float,
-         rng: np.random.Generator, progress: Progress) -> list[LevelResult]:
+def scan(
+    system: DrivenSystem,
+    levels: list[np.ndarray],
+    X0: np.ndarray,
+    steps: int,
+    tol: float,
+    rng: np.random.Generator,
+    progress: Progress,
+) -> list[LevelResult]:
     """Settle ``len(X0)`` replicas at every constant level and name what they reach."""
     R, M = X0.shape
     L = len(levels)
@@ -211,7 +258,9 @@ def scan(system: DrivenSystem, levels: list[np.ndarray], X0: np.ndarray, steps: 
         per = _periods(system, X[rows], V, tol)
         still: list[int] = []
         for k, i in enumerate(active):
-            res = _analyse(system, levels[i], X[i * R:(i + 1) * R], per[k * R:(k + 1) * R], drives[i], tol, near, rng)
+            res = _analyse(
+                system, levels[i], X[i * R : (i + 1) * R], per[k * R : (k + 1) * R], drives[i], tol, near, rng
+            )
             results[i] = res
             if res.status == "not settled" or any(a.label.startswith("limit cycle") for a in res.attractors):
                 still.append(i)  # slow convergence looks like either: give it more time

@@ -1,5 +1,6 @@
 """The reliability check: algebraic evidence, replica test, Lyapunov exponents, constant-input scan
 and (external mode) the tune-in, combined into a verdict (thesis 4.4.1, 5.3.1, 5.3.2)."""
+
 from __future__ import annotations
 
 import time
@@ -39,10 +40,19 @@ class Settings:
     horizon: int = 200
 
     def to_json(self) -> dict[str, Any]:
-        return {"replicas": self.replicas, "scan_replicas": self.scan_replicas, "length": self.length,
-                "levels": self.levels, "seed": self.seed, "tolerance": self.tolerance,
-                "sines": [s.name() for s in self.sines], "lyapunov_replicas": self.lyapunov_replicas,
-                "exponents": self.exponents, "tune_in_max": self.tune_in_max, "horizon": self.horizon}
+        return {
+            "replicas": self.replicas,
+            "scan_replicas": self.scan_replicas,
+            "length": self.length,
+            "levels": self.levels,
+            "seed": self.seed,
+            "tolerance": self.tolerance,
+            "sines": [s.name() for s in self.sines],
+            "lyapunov_replicas": self.lyapunov_replicas,
+            "exponents": self.exponents,
+            "tune_in_max": self.tune_in_max,
+            "horizon": self.horizon,
+        }
 
 
 @dataclass
@@ -108,9 +118,15 @@ class Report:
             "algebraic": [e.to_json() for e in self.evidence],
             "replica_test": {
                 "replicas": self.settings.replicas,
-                "signals": [dict(s.to_json(dt), largest_lyapunov=(self.lyapunov_json(self.exponents[s.name])
-                                                                  if s.name in self.exponents else None))
-                            for s in self.signals],
+                "signals": [
+                    dict(
+                        s.to_json(dt),
+                        largest_lyapunov=(
+                            self.lyapunov_json(self.exponents[s.name]) if s.name in self.exponents else None
+                        ),
+                    )
+                    for s in self.signals
+                ],
                 "phase_families": [f.to_json() for f in self.families],
                 "largest_final_distance": max((s.final_distance for s in self.signals), default=None),
             },
@@ -119,9 +135,11 @@ class Report:
                 "inputs": self.input_names,
                 "levels": [lv.to_json(dt, cont) for lv in self.levels],
             },
-            "external_mode": None if self.tune_in is None and not self.closed_loop else {
+            "external_mode": None
+            if self.tune_in is None and not self.closed_loop
+            else {
                 "closed_loop": "not reliable by construction: the fed-back output makes the free run depend on its "
-                               "start (thesis 5.3.2); the verdict is for the open loop driven by input and output",
+                "start (thesis 5.3.2); the verdict is for the open loop driven by input and output",
                 "facts": [e.to_json() for e in self.closed_loop],
                 "tune_in": None if self.tune_in is None else self.tune_in.to_json(),
             },
@@ -142,8 +160,14 @@ def _finite(obj: Any) -> Any:
     return obj
 
 
-def _lyapunov(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, k: int,
-              rng: np.random.Generator, progress: Progress) -> dict[str, lyapunov.Exponents]:
+def _lyapunov(
+    system: DrivenSystem,
+    signals: list[TestSignal],
+    X0: np.ndarray,
+    k: int,
+    rng: np.random.Generator,
+    progress: Progress,
+) -> dict[str, lyapunov.Exponents]:
     """Largest exponents per signal, maximum over the trajectories from the rows of X0."""
     out: dict[str, lyapunov.Exponents] = {}
     L = len(X0)
@@ -155,14 +179,15 @@ def _lyapunov(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, k
         Vr = np.ascontiguousarray(np.repeat(V, L, axis=0).transpose(1, 0, 2))  # (n, S L, d)
         ex = lyapunov.exponents(system, Vr, np.tile(X0, (len(idx), 1)), k, rng, progress=progress)
         for j, i in enumerate(idx):
-            mine = ex[j * L:(j + 1) * L]
+            mine = ex[j * L : (j + 1) * L]
             best = max(mine, key=lambda e: e.largest if np.isfinite(e.largest) else np.inf)
             out[signals[i].name] = best
     return out
 
 
-def _tune_in(system: DrivenSystem, settings: Settings, rng: np.random.Generator, X0: np.ndarray,
-             progress: Progress) -> tuple[tune_in.TuneInResult | None, str]:
+def _tune_in(
+    system: DrivenSystem, settings: Settings, rng: np.random.Generator, X0: np.ndarray, progress: Progress
+) -> tuple[tune_in.TuneInResult | None, str]:
     """Tune-in samples an external-mode model needs, taught with the recorded output (the open
     loop's training signal holds input and output) or, without one, with its own closed-loop run."""
     cl = system.closed_loop
@@ -180,7 +205,7 @@ def _tune_in(system: DrivenSystem, settings: Settings, rng: np.random.Generator,
         rec = np.asarray(system.training_input, dtype=np.float64)
         lengths = system.training_lengths
         if lengths is not None and len(lengths):
-            rec = rec[:int(lengths[0])]
+            rec = rec[: int(lengths[0])]
         rec = rec[:need] if len(rec) >= settings.horizon + 1 else None
     if rec is not None:
         V = system.drive(rec)
@@ -192,8 +217,10 @@ def _tune_in(system: DrivenSystem, settings: Settings, rng: np.random.Generator,
         bounds = (np.minimum(lo_m, hi_m) - 10 * width, np.maximum(lo_m, hi_m) + 10 * width)
         y_teach, stop = tune_in.reference(system, Vin, bounds)
         if stop is not None and stop < settings.horizon + 1:
-            return None, ("no recorded output, and the closed loop run from the rest state on white noise leaves the "
-                          f"output range at sample {stop}: the tune-in could not be measured")
+            return None, (
+                "no recorded output, and the closed loop run from the rest state on white noise leaves the "
+                f"output range at sample {stop}: the tune-in could not be measured"
+            )
         if stop is not None:
             Vin, y_teach = Vin[:stop], y_teach[:stop]
         source = "white noise input, taught with the closed loop's own run from the rest state"
@@ -228,7 +255,7 @@ def check(system: DrivenSystem, settings: Settings | None = None, progress: Prog
     timing["replica_test"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    XL = X0[:max(1, min(settings.lyapunov_replicas, len(X0)))]
+    XL = X0[: max(1, min(settings.lyapunov_replicas, len(X0)))]
     exps = _lyapunov(system, signals, XL, settings.exponents, rng_lyap, progress)
     timing["lyapunov"] = time.perf_counter() - t0
 
@@ -248,14 +275,33 @@ def check(system: DrivenSystem, settings: Settings | None = None, progress: Prog
         tune, note = _tune_in(system, settings, rng_tune, X0, progress)
         notes.append(note)
         if tune is not None and tune.required is not None and tune.required > tune.configured:
-            notes.append(f"the model tunes in on {tune.configured} samples but its free run needs {tune.required} "
-                         "to start on the right trajectory: raise tune_in")
+            notes.append(
+                f"the model tunes in on {tune.configured} samples but its free run needs {tune.required} "
+                "to start on the right trajectory: raise tune_in"
+            )
         timing["tune_in"] = time.perf_counter() - t0
 
     per_unit = 1.0 / system.sampling_time if system.continuous else 1.0
     unit = "time unit" if system.continuous else "step"
     verdict = decide(evidence, sig_results, families, exps, level_results, system.inputs.names, tol, unit, per_unit)
     timing["total"] = sum(timing.values())
-    return Report(system.describe(), settings, n, scale, tol, evidence, sig_results, families, exps,
-                  level_results, verdict, system.inputs.names, system.sampling_time, system.continuous,
-                  closed, tune, notes, timing)
+    return Report(
+        system.describe(),
+        settings,
+        n,
+        scale,
+        tol,
+        evidence,
+        sig_results,
+        families,
+        exps,
+        level_results,
+        verdict,
+        system.inputs.names,
+        system.sampling_time,
+        system.continuous,
+        closed,
+        tune,
+        notes,
+        timing,
+    )

@@ -7,6 +7,7 @@
   fixed point for zero drive when the biases are zero: unreliable. With biases it proves nothing.
 * rho < 1 alone does not guarantee reliability (the 2-element network of eq. 5.28).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -51,18 +52,35 @@ def tanh_network_evidence(C, a: np.ndarray, g: np.ndarray, c0: np.ndarray) -> li
     out: list[Evidence] = []
     if not leaky:
         if sigma < 1:
-            out.append(Evidence("sigma(C)", sigma, "reliable",
-                                "sigma(C) < 1: the network is a contraction, every input gives one response (eq. 4.51)"))
+            out.append(
+                Evidence(
+                    "sigma(C)",
+                    sigma,
+                    "reliable",
+                    "sigma(C) < 1: the network is a contraction, every input gives one response (eq. 4.51)",
+                )
+            )
         else:
-            out.append(Evidence("sigma(C)", sigma, "undecided",
-                                "sigma(C) >= 1: the contraction proof of eq. 4.51 does not apply"))
+            out.append(
+                Evidence(
+                    "sigma(C)", sigma, "undecided", "sigma(C) >= 1: the contraction proof of eq. 4.51 does not apply"
+                )
+            )
     else:
-        out.append(Evidence("sigma(C)", sigma, "undecided", "largest singular value of C (leaky elements: see the bound)"))
+        out.append(
+            Evidence("sigma(C)", sigma, "undecided", "largest singular value of C (leaky elements: see the bound)")
+        )
         bound = float(np.max(np.abs(a))) + largest_singular_value(sp.diags(g) @ C)
-        out.append(Evidence(
-            "max|a| + sigma(diag(g) C)", bound, "reliable" if bound < 1 else "undecided",
-            "< 1: the leaky network is a contraction (eq. 4.51 generalised)" if bound < 1
-            else ">= 1: the contraction bound does not apply"))
+        out.append(
+            Evidence(
+                "max|a| + sigma(diag(g) C)",
+                bound,
+                "reliable" if bound < 1 else "undecided",
+                "< 1: the leaky network is a contraction (eq. 4.51 generalised)"
+                if bound < 1
+                else ">= 1: the contraction bound does not apply",
+            )
+        )
     if leaky:
         out.append(Evidence("rho(C)", rho, "undecided", "spectral radius of C"))
         rho_name, rho0 = "rho(diag(a) + diag(g) C)", spectral_radius(sp.diags(a) + sp.diags(g) @ C)
@@ -70,13 +88,32 @@ def tanh_network_evidence(C, a: np.ndarray, g: np.ndarray, c0: np.ndarray) -> li
         rho_name, rho0 = "rho(C)", rho
     proved = any(e.implies == "reliable" for e in out)
     if rho0 > 1 and zero_bias:
-        out.append(Evidence(rho_name, rho0, "unreliable",
-                            "> 1 with zero biases: for zero drive the rest state x = 0 is an unstable fixed point (eq. 5.24)"))
+        out.append(
+            Evidence(
+                rho_name,
+                rho0,
+                "unreliable",
+                "> 1 with zero biases: for zero drive the rest state x = 0 is an unstable fixed point (eq. 5.24)",
+            )
+        )
     elif rho0 > 1:
-        out.append(Evidence(rho_name, rho0, "undecided",
-                            "> 1: the linearisation at x = 0 expands; with nonzero biases this is no proof (numerical tests decide)"))
+        out.append(
+            Evidence(
+                rho_name,
+                rho0,
+                "undecided",
+                "> 1: the linearisation at x = 0 expands; with nonzero biases this is no proof (numerical tests decide)",
+            )
+        )
     else:
-        out.append(Evidence(rho_name, rho0, "undecided",
-                            "<= 1 does not guarantee reliability (eq. 5.28 has rho 0.79 and two attractors); "
-                            "numerical tests decide" if not proved else "<= 1, as implied by the contraction bound"))
+        out.append(
+            Evidence(
+                rho_name,
+                rho0,
+                "undecided",
+                "<= 1 does not guarantee reliability (eq. 5.28 has rho 0.79 and two attractors); numerical tests decide"
+                if not proved
+                else "<= 1, as implied by the contraction bound",
+            )
+        )
     return out

@@ -7,6 +7,7 @@ arbitrarily close separate: the response depends on the initial state and the sy
 reliable for that input. Exponents are per step; for flows divided by the sampling time
 (per time unit) when reported.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -52,8 +53,16 @@ def _orthonormal(rng: np.random.Generator, rows: int, m: int, k: int) -> np.ndar
     return np.ascontiguousarray(Q)
 
 
-def exponents(system: DrivenSystem, V: np.ndarray, X0: np.ndarray, k: int, rng: np.random.Generator,
-              discard: float = 0.25, progress: Progress | None = None, label: str = "lyapunov") -> list[Exponents]:
+def exponents(
+    system: DrivenSystem,
+    V: np.ndarray,
+    X0: np.ndarray,
+    k: int,
+    rng: np.random.Generator,
+    discard: float = 0.25,
+    progress: Progress | None = None,
+    label: str = "lyapunov",
+) -> list[Exponents]:
     """Exponents along the trajectories from each row of X0 under per-row drives.
 
     ``V`` has shape (n, rows, d): the drive of every row at every step.
@@ -90,8 +99,13 @@ def exponents(system: DrivenSystem, V: np.ndarray, X0: np.ndarray, k: int, rng: 
     lam = sums / max(1, n - n0)
     finite = np.isfinite(X).all(axis=1)
     lam[~finite] = np.nan
-    counts = np.array([min(block_len, max(0, (n - n0) - b * block_len)) if b < BLOCKS - 1
-                       else (n - n0) - (BLOCKS - 1) * block_len for b in range(BLOCKS)], dtype=np.float64)
+    counts = np.array(
+        [
+            min(block_len, max(0, (n - n0) - b * block_len)) if b < BLOCKS - 1 else (n - n0) - (BLOCKS - 1) * block_len
+            for b in range(BLOCKS)
+        ],
+        dtype=np.float64,
+    )
     valid = counts > 0
     means = blocks[:, valid] / counts[valid]
     se = means.std(axis=1, ddof=1) / np.sqrt(valid.sum()) if valid.sum() > 1 else np.full(rows, np.inf)
@@ -100,5 +114,10 @@ def exponents(system: DrivenSystem, V: np.ndarray, X0: np.ndarray, k: int, rng: 
 
 def to_json(e: Exponents, dt: float, continuous: bool) -> dict[str, Any]:
     scale = 1.0 / dt if continuous else 1.0
-    return {"largest": e.largest * scale, "exponents": [float(v) * scale for v in e.values],
-            "stderr": e.stderr * scale, "unit": "per time unit" if continuous else "per step", "sign": e.sign()}
+    return {
+        "largest": e.largest * scale,
+        "exponents": [float(v) * scale for v in e.values],
+        "stderr": e.stderr * scale,
+        "unit": "per time unit" if continuous else "per step",
+        "sign": e.sign(),
+    }

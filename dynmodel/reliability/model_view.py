@@ -4,6 +4,7 @@ model's preprocessing (scaling, delay lines), with the training input and range 
 For external-mode models the system is the *open loop*: driven by the input and by the output,
 which the check then supplies itself (measured output during the tune-in, thesis 5.3.2).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,8 +46,8 @@ class ModelSystem(DrivenSystem):
             u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)
             dom = InputDomain.from_samples(list(pre.input_names), u)
         else:
-            lo = inner.inputs.low[:self.n_in] * pre.input_scale + pre.input_offset
-            hi = inner.inputs.high[:self.n_in] * pre.input_scale + pre.input_offset
+            lo = inner.inputs.low[: self.n_in] * pre.input_scale + pre.input_offset
+            hi = inner.inputs.high[: self.n_in] * pre.input_scale + pre.input_offset
             dom = InputDomain.from_range(list(pre.input_names), lo, hi)
         self.training_input = u
         self.training_lengths = model.train_input_lengths
@@ -75,12 +76,14 @@ class ModelSystem(DrivenSystem):
         if lengths is not None and len(lengths):
             edges = np.cumsum(np.concatenate([[0], lengths]))
             k = int(np.argmax(np.diff(edges)))
-            u = u[edges[k]:edges[k + 1]]
+            u = u[edges[k] : edges[k + 1]]
         y, stop = self.reference(u)
         self.teacher_source = "training input, taught with the closed loop's own run from the rest state"
         if stop is not None:
-            self.reference_note = (f"the model file holds no training outputs, and the closed loop run from the rest "
-                                   f"state on the training input left the output range at sample {stop}")
+            self.reference_note = (
+                f"the model file holds no training outputs, and the closed loop run from the rest "
+                f"state on the training input left the output range at sample {stop}"
+            )
             u, y = u[:stop], y[:stop]
         if len(u) < 10:
             self.training_input, self.training_lengths = None, None
@@ -90,13 +93,13 @@ class ModelSystem(DrivenSystem):
 
     # -- mapping ---------------------------------------------------------------------------
     def model_inputs(self, u: np.ndarray) -> np.ndarray:
-        return self.pre.inputs(np.asarray(u, dtype=np.float64).reshape(len(u), -1)[:, :self.n_in])
+        return self.pre.inputs(np.asarray(u, dtype=np.float64).reshape(len(u), -1)[:, : self.n_in])
 
     def drive(self, u: np.ndarray) -> np.ndarray:
         u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)
         um = self.model_inputs(u)
         if self.closed_loop is not None:
-            um = np.hstack([um, self.pre.outputs(u[:, self.n_in:])])
+            um = np.hstack([um, self.pre.outputs(u[:, self.n_in :])])
         return self.inner.drive(um)
 
     def reference(self, u: np.ndarray) -> tuple[np.ndarray, int | None]:
@@ -130,7 +133,10 @@ def model_system(model: FittedModel, source: str = "") -> ModelSystem:
     """The driven system of a fitted model, or a one-line error when its family has none."""
     view = model.family.driven_system()
     if view is None:
-        raise DynmodelError(f"the '{model.family.name}' family does not expose a driven-system view, so its "
-                            "reliability cannot be checked", source or None,
-                            "check a network family's model (e.g. esn), or a built-in system with --system NAME")
+        raise DynmodelError(
+            f"the '{model.family.name}' family does not expose a driven-system view, so its "
+            "reliability cannot be checked",
+            source or None,
+            "check a network family's model (e.g. esn), or a built-in system with --system NAME",
+        )
     return ModelSystem(model, view, source)

@@ -3,6 +3,7 @@
 
 Any network family can return these from ``Family.driven_system()``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -11,7 +12,6 @@ import scipy.sparse as sp
 from .. import kernels
 from .evidence import largest_singular_value, tanh_network_evidence
 from .system import ClosedLoop, DrivenSystem, Evidence, InputDomain
-
 
 DENSE_MIN_SIZE = 64
 DENSE_MAX_SIZE = 5000
@@ -24,9 +24,18 @@ class SigmoidNetwork(DrivenSystem):
     name = "sigmoid-network"
     description = "network of tanh elements (thesis eq. 4.49 / 5.22 / 6.21)"
 
-    def __init__(self, C, B: np.ndarray, c0: np.ndarray, a: np.ndarray | None = None, g: np.ndarray | None = None,
-                 inputs: InputDomain | None = None, closed_loop: ClosedLoop | None = None,
-                 name: str | None = None, description: str | None = None):
+    def __init__(
+        self,
+        C,
+        B: np.ndarray,
+        c0: np.ndarray,
+        a: np.ndarray | None = None,
+        g: np.ndarray | None = None,
+        inputs: InputDomain | None = None,
+        closed_loop: ClosedLoop | None = None,
+        name: str | None = None,
+        description: str | None = None,
+    ):
         C = sp.csr_matrix(C, dtype=np.float64)
         C.sort_indices()
         m = C.shape[0]
@@ -37,16 +46,26 @@ class SigmoidNetwork(DrivenSystem):
         self.g = np.ones(m) if g is None else np.ascontiguousarray(g, dtype=np.float64)
         self.state_dim = m
         d = self.B.shape[1]
-        self.inputs = inputs if inputs is not None else InputDomain.from_range(
-            [f"v{j}" for j in range(d)], -np.ones(d), np.ones(d))
+        self.inputs = (
+            inputs
+            if inputs is not None
+            else InputDomain.from_range([f"v{j}" for j in range(d)], -np.ones(d), np.ones(d))
+        )
         self.closed_loop = closed_loop
         self.rest_state = np.zeros(m)
         if name:
             self.name = name
         if description:
             self.description = description
-        self._args = (C.indptr.astype(np.int64), C.indices.astype(np.int64), C.data.astype(np.float64),
-                      self.B, self.c0, self.a, self.g)
+        self._args = (
+            C.indptr.astype(np.int64),
+            C.indices.astype(np.int64),
+            C.data.astype(np.float64),
+            self.B,
+            self.c0,
+            self.a,
+            self.g,
+        )
         # dense connection matrices: contiguous compiled loops over C^T beat the sparse gather
         # (and, unlike BLAS, do not stall when the machine is busy)
         use_dense = DENSE_MIN_SIZE <= m <= DENSE_MAX_SIZE and C.nnz >= DENSE_MIN_FILL * m * m
@@ -83,8 +102,16 @@ class SigmoidNetwork(DrivenSystem):
 class LinearFeedback(ClosedLoop):
     """Readout y_t = W x_t + D v_t + w0 fed back as the last ``n_outputs`` drive channels."""
 
-    def __init__(self, W: np.ndarray, D: np.ndarray, w0: np.ndarray, tune_in: int, rest_output: np.ndarray,
-                 C=None, B_back: np.ndarray | None = None):
+    def __init__(
+        self,
+        W: np.ndarray,
+        D: np.ndarray,
+        w0: np.ndarray,
+        tune_in: int,
+        rest_output: np.ndarray,
+        C=None,
+        B_back: np.ndarray | None = None,
+    ):
         self.W = np.ascontiguousarray(W, dtype=np.float64)
         self.D = np.ascontiguousarray(D, dtype=np.float64)
         self.w0 = np.ascontiguousarray(w0, dtype=np.float64)
@@ -101,8 +128,14 @@ class LinearFeedback(ClosedLoop):
             return []
         Ct = sp.csr_matrix(self._C).toarray() + self._B_back @ self.W
         s = largest_singular_value(Ct)
-        direct = self.D[:, -self.n_outputs:]
+        direct = self.D[:, -self.n_outputs :]
         note = "" if not np.any(direct) else " (ignoring the direct link of the fed-back output)"
-        return [Evidence("sigma(C + b_back w^T)", s, "undecided",
-                         f"closed-loop matrix of eq. 5.34{note}: the feedback makes the free run unreliable on "
-                         "purpose (5.3.2), so it needs a tune-in")]
+        return [
+            Evidence(
+                "sigma(C + b_back w^T)",
+                s,
+                "undecided",
+                f"closed-loop matrix of eq. 5.34{note}: the feedback makes the free run unreliable on "
+                "purpose (5.3.2), so it needs a tune-in",
+            )
+        ]

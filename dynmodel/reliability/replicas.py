@@ -6,6 +6,7 @@ signal's replicas (largest distance to its first replica) is recorded at every s
 test reads the final distance and the *time to converge*: the step after which the spread stays
 below the tolerance (the washout a user needs before trusting the output).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -52,9 +53,14 @@ class SignalResult:
     spread: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     def to_json(self, dt: float) -> dict[str, Any]:
-        out = {"name": self.name, "kind": self.kind, "status": self.status,
-               "final_distance": self.final_distance, "converged_after_steps": self.converged_after,
-               "converged_after_time": None if self.converged_after is None else self.converged_after * dt}
+        out = {
+            "name": self.name,
+            "kind": self.kind,
+            "status": self.status,
+            "final_distance": self.final_distance,
+            "converged_after_steps": self.converged_after,
+            "converged_after_time": None if self.converged_after is None else self.converged_after * dt,
+        }
         if self.rate is not None:
             out["shrink_rate_per_step"] = self.rate
             out["steps_needed_estimate"] = self.steps_needed
@@ -74,8 +80,13 @@ class FamilyResult:
     length_needed: int | None = None  # run length whose tail would let them meet (status slow)
 
     def to_json(self) -> dict[str, Any]:
-        return {"family": self.family, "members": self.members, "final_distance": self.final_distance,
-                "status": self.status, "length_needed_estimate": self.length_needed}
+        return {
+            "family": self.family,
+            "members": self.members,
+            "final_distance": self.final_distance,
+            "status": self.status,
+            "length_needed_estimate": self.length_needed,
+        }
 
 
 def max_pairwise(F: np.ndarray) -> float:
@@ -84,7 +95,7 @@ def max_pairwise(F: np.ndarray) -> float:
         return float("inf")
     best = 0.0
     for r in range(len(F) - 1):
-        d = np.sqrt(((F[r + 1:] - F[r]) ** 2).sum(axis=1)).max()
+        d = np.sqrt(((F[r + 1 :] - F[r]) ** 2).sum(axis=1)).max()
         best = max(best, float(d))
     return best
 
@@ -93,7 +104,7 @@ def shrink_trend(spread: np.ndarray) -> tuple[float, float, float]:
     """Least-squares slope of log(spread) over the second half of a run (per step), the drop in
     log spread it predicts over that half, and the scatter (std of the residuals)."""
     n = len(spread)
-    h = spread[n // 2:]
+    h = spread[n // 2 :]
     t = np.arange(len(h), dtype=np.float64)
     ok = h > 0
     if ok.sum() < 3:
@@ -117,7 +128,7 @@ def classify(spread: np.ndarray, final: float, tol: float, apart: float) -> dict
     if len(bad):
         return {"status": "diverged", "diverged_at": int(bad[0]) + 1}
     w = max(1, n // 20)
-    d_end = float(spread[n - w:].max())
+    d_end = float(spread[n - w :].max())
     if d_end <= tol and final <= 2 * tol:
         above = np.flatnonzero(spread > tol)
         return {"status": "converged", "converged_after": 0 if len(above) == 0 else int(above[-1]) + 2}
@@ -130,8 +141,15 @@ def classify(spread: np.ndarray, final: float, tol: float, apart: float) -> dict
     return {"status": "close"}
 
 
-def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: float, apart: float,
-        progress: Progress, scale: float = 1.0) -> tuple[list[SignalResult], list[FamilyResult]]:
+def run(
+    system: DrivenSystem,
+    signals: list[TestSignal],
+    X0: np.ndarray,
+    tol: float,
+    apart: float,
+    progress: Progress,
+    scale: float = 1.0,
+) -> tuple[list[SignalResult], list[FamilyResult]]:
     """Drive ``len(X0)`` replicas with every signal; batches by signal length."""
     results: dict[int, SignalResult] = {}
     finals: dict[int, np.ndarray] = {}
@@ -147,8 +165,10 @@ def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: fl
         V = np.stack([system.drive(signals[i].u) for i in idx])  # (S, n, d)
         X = np.ascontiguousarray(np.tile(X0, (S, 1)))
         spread = np.zeros((n, S))
-        fams = {f: [j for j, i in enumerate(idx) if signals[i].family == f]
-                for f in sorted({signals[i].family for i in idx if signals[i].family})}
+        fams = {
+            f: [j for j, i in enumerate(idx) if signals[i].family == f]
+            for f in sorted({signals[i].family for i in idx if signals[i].family})
+        }
         hist = {f: np.zeros(n) for f in fams}
         report_every = max(1, n // 20)
         live = R  # replicas still simulated per signal
@@ -172,16 +192,23 @@ def run(system: DrivenSystem, signals: list[TestSignal], X0: np.ndarray, tol: fl
                 heads = X[[j * live for j in js]]
                 hist[f][t] = max_pairwise(heads)
             if t % report_every == 0:
-                progress("replicas", (done + (t + 1) * S) / total,
-                         f"{S * R} replicas x {S} signals, step {t + 1}/{n}")
+                progress("replicas", (done + (t + 1) * S) / total, f"{S * R} replicas x {S} signals, step {t + 1}/{n}")
         done += n * S
         fam_hist.update(hist)
         F = X.reshape(S, live, M)
         for j, i in enumerate(idx):
             final = max_pairwise(F[j])
             info = classify(spread[:, j], final, tol, apart)
-            results[i] = SignalResult(signals[i].name, signals[i].kind, signals[i].base, final, info.pop("status"),
-                                      family=signals[i].family, spread=spread[:, j].copy(), **info)
+            results[i] = SignalResult(
+                signals[i].name,
+                signals[i].kind,
+                signals[i].base,
+                final,
+                info.pop("status"),
+                family=signals[i].family,
+                spread=spread[:, j].copy(),
+                **info,
+            )
             finals[i] = F[j]
     families: list[FamilyResult] = []
     for fam in sorted({s.family for s in signals if s.family}):

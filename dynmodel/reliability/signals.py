@@ -11,6 +11,7 @@ initial state under *every* input, so the check tries several kinds of them.
   reliable system ends in the same state whatever the phase;
 * sines the system declares (e.g. 27 sin(1.4 t) for the Duffing oscillator) and the user's.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -76,12 +77,14 @@ def training_segments(system: DrivenSystem, n: int) -> list[tuple[int, np.ndarra
         return []
     u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)
     lengths = system.training_lengths
-    bounds = np.cumsum(np.concatenate([[0], lengths])) if lengths is not None and len(lengths) else np.array([0, len(u)])
+    bounds = (
+        np.cumsum(np.concatenate([[0], lengths])) if lengths is not None and len(lengths) else np.array([0, len(u)])
+    )
     k = int(np.argmax(np.diff(bounds)))
-    seg = u[bounds[k]:bounds[k + 1]]
+    seg = u[bounds[k] : bounds[k + 1]]
     m = min(n, len(seg))
     offsets = sorted({0, (len(seg) - m) // 2, len(seg) - m})
-    return [(o, seg[o:o + m]) for o in offsets]
+    return [(o, seg[o : o + m]) for o in offsets]
 
 
 def battery(system: DrivenSystem, n: int, rng: np.random.Generator, extra: list[Sine] = ()) -> list[TestSignal]:
@@ -108,8 +111,16 @@ def battery(system: DrivenSystem, n: int, rng: np.random.Generator, extra: list[
     for ph in PHASES:
         u = _wave(dom, steps, HOLD_AMPLITUDE, 2 * np.pi / p_hold, np.deg2rad(ph), dom.mean)
         u[switch:] = dom.mean
-        out.append(TestSignal(f"small sine {_period_name(p_hold, dt, cont)}, then mean from {switch} (fig. 5.5)",
-                              f"phase {ph:g}", "sine-hold", u, family="fig-5.5", tail_from=switch))
+        out.append(
+            TestSignal(
+                f"small sine {_period_name(p_hold, dt, cont)}, then mean from {switch} (fig. 5.5)",
+                f"phase {ph:g}",
+                "sine-hold",
+                u,
+                family="fig-5.5",
+                tail_from=switch,
+            )
+        )
     for s in [*system.signals(), *extra]:
         out.append(TestSignal(s.name(), "", "declared", declared_sine(dom, s, n, dt)))
     return out

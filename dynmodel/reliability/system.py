@@ -9,6 +9,7 @@ Signals the check generates live in the system's *input space* (``inputs``: name
 training range); :meth:`DrivenSystem.drive` maps a whole input sequence to the per-step drive
 (scaling, delay lines, interpolation within a sampling interval, ...).
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
@@ -49,14 +50,14 @@ class InputDomain:
     std: np.ndarray
 
     @classmethod
-    def from_range(cls, names: list[str], low, high) -> "InputDomain":
+    def from_range(cls, names: list[str], low, high) -> InputDomain:
         """A declared range: mean at the middle, std a quarter of the width."""
         lo = np.atleast_1d(np.asarray(low, dtype=np.float64))
         hi = np.atleast_1d(np.asarray(high, dtype=np.float64))
         return cls(list(names), lo, hi, 0.5 * (lo + hi), 0.25 * (hi - lo))
 
     @classmethod
-    def from_samples(cls, names: list[str], u: np.ndarray) -> "InputDomain":
+    def from_samples(cls, names: list[str], u: np.ndarray) -> InputDomain:
         """The range and statistics of recorded inputs (n, channels)."""
         u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)
         std = u.std(axis=0)
@@ -70,9 +71,11 @@ class InputDomain:
     def width(self) -> np.ndarray:
         return self.high - self.low
 
-    def concat(self, other: "InputDomain") -> "InputDomain":
-        return InputDomain(self.names + other.names, *(np.concatenate([getattr(self, k), getattr(other, k)])
-                                                        for k in ("low", "high", "mean", "std")))
+    def concat(self, other: InputDomain) -> InputDomain:
+        return InputDomain(
+            self.names + other.names,
+            *(np.concatenate([getattr(self, k), getattr(other, k)]) for k in ("low", "high", "mean", "std")),
+        )
 
 
 @dataclass(frozen=True)
@@ -176,7 +179,7 @@ class DrivenSystem(ABC):
         out = lo + (hi - lo) * rng.random((n, m))
         k = min(n // 4, 2 ** min(m, 30) if m < 31 else n)  # distinct corners only
         if k:
-            out[n - k:] = np.where(rng.random((k, m)) < 0.5, hi, lo)
+            out[n - k :] = np.where(rng.random((k, m)) < 0.5, hi, lo)
         if self.rest_state is not None and n:
             out[0] = self.rest_state
         return out
@@ -197,10 +200,17 @@ class DrivenSystem(ABC):
         return []
 
     def describe(self) -> dict[str, Any]:
-        return {"name": self.name, "description": self.description, "state_dim": self.state_dim,
-                "inputs": self.inputs.names, "input_low": self.inputs.low.tolist(),
-                "input_high": self.inputs.high.tolist(), "sampling_time": self.sampling_time,
-                "continuous": self.continuous, "external_mode": self.closed_loop is not None}
+        return {
+            "name": self.name,
+            "description": self.description,
+            "state_dim": self.state_dim,
+            "inputs": self.inputs.names,
+            "input_low": self.inputs.low.tolist(),
+            "input_high": self.inputs.high.tolist(),
+            "sampling_time": self.sampling_time,
+            "continuous": self.continuous,
+            "external_mode": self.closed_loop is not None,
+        }
 
 
 class SystemParams(BaseModel):

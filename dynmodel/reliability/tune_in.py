@@ -12,6 +12,7 @@ the tolerance: after it the free run no longer depends on where the network star
 without measured outputs fall back to the closed loop's own run from the rest state as the
 "measured" signal (:func:`reference`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -39,14 +40,22 @@ class TuneInResult:
     note: str = ""
 
     def to_json(self) -> dict[str, Any]:
-        return {"configured_tune_in": self.configured, "required_tune_in": self.required,
-                "sufficient": None if self.required is None else self.required <= self.configured,
-                "grid": self.grid, "replica_output_difference": self.deviations, "horizon": self.horizon,
-                "tolerance_fraction_of_output_range": self.tolerance, "replicas": self.replicas, "note": self.note}
+        return {
+            "configured_tune_in": self.configured,
+            "required_tune_in": self.required,
+            "sufficient": None if self.required is None else self.required <= self.configured,
+            "grid": self.grid,
+            "replica_output_difference": self.deviations,
+            "horizon": self.horizon,
+            "tolerance_fraction_of_output_range": self.tolerance,
+            "replicas": self.replicas,
+            "note": self.note,
+        }
 
 
-def reference(system: DrivenSystem, Vin: np.ndarray,
-              bounds: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, int | None]:
+def reference(
+    system: DrivenSystem, Vin: np.ndarray, bounds: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple[np.ndarray, int | None]:
     """Closed-loop free run from the rest state on model inputs Vin (n, d_in): outputs (n, n_out)
     and the sample where the output left ``bounds`` (None if it stayed inside)."""
     cl = system.closed_loop
@@ -66,8 +75,16 @@ def reference(system: DrivenSystem, Vin: np.ndarray,
     return Y, None
 
 
-def measure(system: DrivenSystem, Vin: np.ndarray, y_teach: np.ndarray, X0: np.ndarray, out_range: np.ndarray,
-            horizon: int, max_k: int, progress: Progress) -> TuneInResult:
+def measure(
+    system: DrivenSystem,
+    Vin: np.ndarray,
+    y_teach: np.ndarray,
+    X0: np.ndarray,
+    out_range: np.ndarray,
+    horizon: int,
+    max_k: int,
+    progress: Progress,
+) -> TuneInResult:
     """For k in the grid: replicas from X0 (the first one the rest state) fed ``y_teach`` for k
     samples, then free; the largest output difference between them over ``horizon`` samples after
     the switch, as a fraction of the output range."""
@@ -76,8 +93,16 @@ def measure(system: DrivenSystem, Vin: np.ndarray, y_teach: np.ndarray, X0: np.n
     n = len(Vin)
     grid = [k for k in GRID if k <= max_k and k + horizon <= n]
     if not grid:
-        return TuneInResult(cl.tune_in, None, [], [], horizon, OUTPUT_TOL, len(X0),
-                            f"the test input has only {n} samples, fewer than the horizon of {horizon}")
+        return TuneInResult(
+            cl.tune_in,
+            None,
+            [],
+            [],
+            horizon,
+            OUTPUT_TOL,
+            len(X0),
+            f"the test input has only {n} samples, fewer than the horizon of {horizon}",
+        )
     R = len(X0)
     K = len(grid)
     ks = np.repeat(np.array(grid), R)
@@ -107,6 +132,9 @@ def measure(system: DrivenSystem, Vin: np.ndarray, y_teach: np.ndarray, X0: np.n
             progress("tune-in", t / steps, f"{K} tune-in lengths x {R} replicas, step {t + 1}/{steps}")
     ok = dev <= OUTPUT_TOL
     required = next((grid[i] for i in range(K) if ok[i:].all()), None)
-    note = "" if required is not None else (
-        f"the free runs from different initial states did not agree within {max(grid)} tune-in samples")
+    note = (
+        ""
+        if required is not None
+        else (f"the free runs from different initial states did not agree within {max(grid)} tune-in samples")
+    )
     return TuneInResult(cl.tune_in, required, grid, [float(v) for v in dev], horizon, OUTPUT_TOL, R, note)

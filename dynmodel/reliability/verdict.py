@@ -11,6 +11,7 @@
 * Without proof either way: reliable when every test converged and every constant level has one
   fixed point, inconclusive when something did not settle within the run.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -45,15 +46,21 @@ def describe_level(level: LevelResult, names: list[str]) -> str:
     inp = ", ".join(f"{n} = {x:.4g}" for n, x in zip(names, level.input))
     if level.status == "not settled" and all(a.kind != "non-periodic" for a in level.attractors):
         pts = np.concatenate([a.points for a in level.attractors])
-        return (f"{inp}: {level.responses} end states within {level.spread:.3g} of each other near "
-                f"{_fmt_vec(pts[0])}, still converging (rerun with --length)")
+        return (
+            f"{inp}: {level.responses} end states within {level.spread:.3g} of each other near "
+            f"{_fmt_vec(pts[0])}, still converging (rerun with --length)"
+        )
     parts = []
     for a in level.attractors:
         if a.kind == "fixed point":
-            parts.append(f"fixed point {_fmt_vec(a.points[0])}" + (f" ({a.replicas} replicas)" if level.responses > 1 else ""))
+            parts.append(
+                f"fixed point {_fmt_vec(a.points[0])}" + (f" ({a.replicas} replicas)" if level.responses > 1 else "")
+            )
         elif a.kind == "cycle":
             pts = " -> ".join(_fmt_vec(p) for p in a.points[:4]) + (" -> ..." if len(a.points) > 4 else "")
-            parts.append(f"{a.period}-cycle {pts} in {a.phases} phase{'s' if a.phases > 1 else ''} ({a.replicas} replicas)")
+            parts.append(
+                f"{a.period}-cycle {pts} in {a.phases} phase{'s' if a.phases > 1 else ''} ({a.replicas} replicas)"
+            )
         else:
             lam = "" if a.lyapunov is None or not np.isfinite(a.lyapunov) else f", largest CLE {a.lyapunov:.3g}/step"
             parts.append(f"{a.label} motion{lam} ({a.replicas} replicas, {a.phases} different)")
@@ -68,34 +75,54 @@ def _summary(items: list[str], total: int, what: str) -> str:
     return f"{len(items)} of {total} {what}, e.g. {items[0]}"
 
 
-def decide(evidence: list[Evidence], signals: list[SignalResult], families: list[FamilyResult],
-           exps: dict[str, Exponents], levels: list[LevelResult], input_names: list[str], tol: float,
-           unit: str = "step", per_unit: float = 1.0) -> Verdict:
+def decide(
+    evidence: list[Evidence],
+    signals: list[SignalResult],
+    families: list[FamilyResult],
+    exps: dict[str, Exponents],
+    levels: list[LevelResult],
+    input_names: list[str],
+    tol: float,
+    unit: str = "step",
+    per_unit: float = 1.0,
+) -> Verdict:
     """The verdict, a few summary reasons, and every counterexample / unsettled item."""
     unsettled: list[str] = []
     by_name = {s.name: s for s in signals}
     # counterexamples by category; the first item of each list is its most telling example
-    apart = sorted([s for s in signals if s.status == "apart"],
-                   key=lambda s: (s.kind != "declared", s.kind != "training", -s.final_distance))
+    apart = sorted(
+        [s for s in signals if s.status == "apart"],
+        key=lambda s: (s.kind != "declared", s.kind != "training", -s.final_distance),
+    )
     apart_txt = [f"replicas end {s.final_distance:.3g} apart under {s.name}" for s in apart]
     diverged = [f"the state diverged at step {s.diverged_at} under {s.name}" for s in signals if s.status == "diverged"]
     for s in signals:
         if s.status == "slow":
-            unsettled.append(f"still converging under {s.name} (distance {s.final_distance:.3g}): rerun with "
-                             f"--length {s.steps_needed} or more")
+            unsettled.append(
+                f"still converging under {s.name} (distance {s.final_distance:.3g}): rerun with "
+                f"--length {s.steps_needed} or more"
+            )
         elif s.status == "close":
-            unsettled.append(f"replicas end {s.final_distance:.3g} apart (above the tolerance {tol:.3g}, not "
-                             f"shrinking) under {s.name}")
-    phase = [f"the final state depends on the phase the drive started at: {len(f.members)} phases of the same "
-             f"input end {f.final_distance:.3g} apart after an identical tail (fig. 5.5)"
-             for f in families if f.status == "apart"]
+            unsettled.append(
+                f"replicas end {s.final_distance:.3g} apart (above the tolerance {tol:.3g}, not "
+                f"shrinking) under {s.name}"
+            )
+    phase = [
+        f"the final state depends on the phase the drive started at: {len(f.members)} phases of the same "
+        f"input end {f.final_distance:.3g} apart after an identical tail (fig. 5.5)"
+        for f in families
+        if f.status == "apart"
+    ]
     for f in families:
         if f.status in ("slow", "close") and all(by_name[m].status == "converged" for m in f.members):
-            unsettled.append(f"the {len(f.members)} phases of the same input (fig. 5.5) end {f.final_distance:.3g} "
-                             f"apart after their common tail and still approach each other: rerun with --length "
-                             f"{f.length_needed} or more" if f.status == "slow" else
-                             f"the {len(f.members)} phases of the same input (fig. 5.5) end {f.final_distance:.3g} "
-                             "apart after their common tail")
+            unsettled.append(
+                f"the {len(f.members)} phases of the same input (fig. 5.5) end {f.final_distance:.3g} "
+                f"apart after their common tail and still approach each other: rerun with --length "
+                f"{f.length_needed} or more"
+                if f.status == "slow"
+                else f"the {len(f.members)} phases of the same input (fig. 5.5) end {f.final_distance:.3g} "
+                "apart after their common tail"
+            )
     positive: list[tuple[float, str]] = []
     for name, e in exps.items():
         if e.sign() == "positive":
@@ -125,22 +152,44 @@ def decide(evidence: list[Evidence], signals: list[SignalResult], families: list
     proof_rel = [e for e in evidence if e.implies == "reliable"]
     proof_unrel = [e for e in evidence if e.implies == "unreliable"]
     if counter and proof_rel:
-        return Verdict("inconclusive",
-                       [f"numerical counterexamples contradict {proof_rel[0].name} = {proof_rel[0].value:.4g} "
-                        f"({proof_rel[0].statement}); suspect a numerical problem"] + summary, counter, unsettled)
+        return Verdict(
+            "inconclusive",
+            [
+                f"numerical counterexamples contradict {proof_rel[0].name} = {proof_rel[0].value:.4g} "
+                f"({proof_rel[0].statement}); suspect a numerical problem"
+            ]
+            + summary,
+            counter,
+            unsettled,
+        )
     if counter:
         return Verdict("unreliable", summary, counter, unsettled)
     if proof_unrel:
-        return Verdict("unreliable", [f"{e.name} = {e.value:.4g}: {e.statement}" for e in proof_unrel], counter,
-                       unsettled)
+        return Verdict(
+            "unreliable", [f"{e.name} = {e.value:.4g}: {e.statement}" for e in proof_unrel], counter, unsettled
+        )
     if proof_rel:
         reasons = [f"{e.name} = {e.value:.4g}: {e.statement}" for e in proof_rel]
-        reasons.append("the numerical tests agree" if not unsettled else
-                       f"the numerical tests find no counterexample ({len(unsettled)} slow to settle)")
+        reasons.append(
+            "the numerical tests agree"
+            if not unsettled
+            else f"the numerical tests find no counterexample ({len(unsettled)} slow to settle)"
+        )
         return Verdict("reliable", reasons, counter, unsettled)
     if unsettled:
-        return Verdict("inconclusive", [f"no counterexample, but {len(unsettled)} test(s) did not settle, e.g. "
-                                        f"{unsettled[0]}"], counter, unsettled)
-    return Verdict("reliable", [f"replicas converged under all {len(signals)} test inputs and each of the "
-                                f"{len(levels)} constant inputs has a single stable fixed point (no algebraic "
-                                "proof: reliable on the tested inputs)"], counter, unsettled)
+        return Verdict(
+            "inconclusive",
+            [f"no counterexample, but {len(unsettled)} test(s) did not settle, e.g. {unsettled[0]}"],
+            counter,
+            unsettled,
+        )
+    return Verdict(
+        "reliable",
+        [
+            f"replicas converged under all {len(signals)} test inputs and each of the "
+            f"{len(levels)} constant inputs has a single stable fixed point (no algebraic "
+            "proof: reliable on the tested inputs)"
+        ],
+        counter,
+        unsettled,
+    )

@@ -9,6 +9,7 @@ improving, until that no longer helps (6.4.5). Restarts run in parallel threads;
 on validation is kept. The fitted network is an ordinary tanh network, so simulation, one-step
 prediction, persistence and the reliability hooks are those of the `esn` family.
 """
+
 from __future__ import annotations
 
 import threading
@@ -36,15 +37,24 @@ class AnnealedRnn(EchoStateNetwork):
 
     def _initial_state(self, data: TrainingData, rng: np.random.Generator) -> NetState:
         p = self.params
-        esn = EsnParams(size=p.size, mode=p.mode, connectivity=p.connectivity, input_connectivity=p.input_connectivity,
-                        bias_connectivity=p.bias_connectivity, input_scale=p.input_scale, bias_scale=p.bias_scale,
-                        feedback_scale=p.feedback_scale, scale=Scale(by="singular", value=p.initial_singular),
-                        relaxation=p.relaxation)
+        esn = EsnParams(
+            size=p.size,
+            mode=p.mode,
+            connectivity=p.connectivity,
+            input_connectivity=p.input_connectivity,
+            bias_connectivity=p.bias_connectivity,
+            input_scale=p.input_scale,
+            bias_scale=p.bias_scale,
+            feedback_scale=p.feedback_scale,
+            scale=Scale(by="singular", value=p.initial_singular),
+            relaxation=p.relaxation,
+        )
         net = build_network(esn, data.n_inputs, data.n_outputs, rng)
         return NetState(net.C.toarray(), net.B_in, net.B_back, net.c0, net.a)
 
-    def _search(self, data: TrainingData, drives: list[np.ndarray], rng: np.random.Generator,
-                report, halt: threading.Event) -> tuple[NetState, float, list[dict[str, Any]], bool]:
+    def _search(
+        self, data: TrainingData, drives: list[np.ndarray], rng: np.random.Generator, report, halt: threading.Event
+    ) -> tuple[NetState, float, list[dict[str, Any]], bool]:
         """One annealing run, with growth stages when asked."""
         p = self.params
         evaluator = Evaluator(data, p, drives)
@@ -62,10 +72,24 @@ class AnnealedRnn(EchoStateNetwork):
                     since.update(step=step, best=best)
                 return halt.is_set() or (p.grow and step - since["step"] >= p.patience)
 
-            result = anneal(state, score, evaluator.score, moves, Schedule(p.steps, p.t0, p.t_end), rng,
-                            on_step=lambda step, T, cur, best, info: report(state.size, step, T, best), stop=stop)
-            stages.append({"size": int(state.size), "steps": len(result.history), "accepted": result.accepted,
-                           "validation_nmse": 100 * result.best_score})
+            result = anneal(
+                state,
+                score,
+                evaluator.score,
+                moves,
+                Schedule(p.steps, p.t0, p.t_end),
+                rng,
+                on_step=lambda step, T, cur, best, info: report(state.size, step, T, best),
+                stop=stop,
+            )
+            stages.append(
+                {
+                    "size": int(state.size),
+                    "steps": len(result.history),
+                    "accepted": result.accepted,
+                    "validation_nmse": 100 * result.best_score,
+                }
+            )
             interrupted = result.interrupted or halt.is_set()
             improved = result.best_score < best_score
             if improved:
@@ -78,8 +102,13 @@ class AnnealedRnn(EchoStateNetwork):
             score = evaluator.score(state)
         return best_state, best_score, stages, interrupted
 
-    def fit(self, data: TrainingData, cost: str = "mse1", rng: np.random.Generator | None = None,
-            progress: Progress = no_progress) -> "AnnealedRnn":
+    def fit(
+        self,
+        data: TrainingData,
+        cost: str = "mse1",
+        rng: np.random.Generator | None = None,
+        progress: Progress = no_progress,
+    ) -> AnnealedRnn:
         rng = rng if rng is not None else np.random.default_rng(0)
         p = self.params
         self._prepare(data)
@@ -90,17 +119,25 @@ class AnnealedRnn(EchoStateNetwork):
             def report(size: int, step: int, temperature: float, best: float) -> None:
                 if step % 10 == 0 or step == p.steps - 1:
                     with lock:
-                        progress("anneal", (step + 1) / max(p.steps, 1),
-                                 f"run {k + 1}/{p.restarts}, {size} elements, T = {temperature:.3g}, "
-                                 f"best validation NMSE {100 * best:.4g} %")
+                        progress(
+                            "anneal",
+                            (step + 1) / max(p.steps, 1),
+                            f"run {k + 1}/{p.restarts}, {size} elements, T = {temperature:.3g}, "
+                            f"best validation NMSE {100 * best:.4g} %",
+                        )
+
             return report
 
-        runs = run_restarts(lambda k, seed, halt: self._search(data, drives, seed, reporter(k), halt),
-                            p.restarts, p.workers, rng)
+        runs = run_restarts(
+            lambda k, seed, halt: self._search(data, drives, seed, reporter(k), halt), p.restarts, p.workers, rng
+        )
         k_best = int(np.argmin([r[1] for r in runs]))
         best, score, stages, _ = runs[k_best]
-        self.search_ = {"restarts": [{"validation_nmse": 100 * r[1], "stages": r[2]} for r in runs], "best_run": k_best,
-                        "interrupted": any(r[3] for r in runs)}
+        self.search_ = {
+            "restarts": [{"validation_nmse": 100 * r[1], "stages": r[2]} for r in runs],
+            "best_run": k_best,
+            "interrupted": any(r[3] for r in runs),
+        }
         self.network_ = best.network(p.relaxation_gain)
         return self._fit_readout(data, cost, progress)
 
@@ -120,8 +157,10 @@ class AnnealedRnn(EchoStateNetwork):
         search = getattr(self, "search_", None)
         if search:
             run = search["restarts"][search["best_run"]]
-            info["annealing"] = (f"{len(search['restarts'])} run(s), best: validation NMSE "
-                                 f"{run['validation_nmse']:.4g} %, stages {[s['size'] for s in run['stages']]}")
+            info["annealing"] = (
+                f"{len(search['restarts'])} run(s), best: validation NMSE "
+                f"{run['validation_nmse']:.4g} %, stages {[s['size'] for s in run['stages']]}"
+            )
             if search.get("interrupted"):
                 info["annealing"] += " (interrupted: best network so far)"
         return info

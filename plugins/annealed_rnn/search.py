@@ -6,6 +6,7 @@ squares on the training split. One evaluation runs the compiled kernel over all 
 reused feature buffer, forms the Gram matrix of the training rows with BLAS and solves the
 readout from it: nothing is allocated per step but the small K x K system.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -55,6 +56,7 @@ def rescale(C: np.ndarray, bound: float) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ moves (thesis 5.3.4)
+
 
 def _pick(mask: np.ndarray, rng: np.random.Generator) -> tuple | None:
     idx = np.flatnonzero(mask)
@@ -123,8 +125,15 @@ def make_moves(p: AnnealedRnnParams):
         a[i] = float(np.clip(a[i] + 0.1 * step * scale * rng.standard_normal(), 0.0, 0.99))
         return replace(s, a=a)
 
-    table = [("add", add), ("cut", cut), ("rewire", rewire), ("weight", weight), ("input", input_weight),
-             ("bias", bias), ("relaxation", relaxation)]
+    table = [
+        ("add", add),
+        ("cut", cut),
+        ("rewire", rewire),
+        ("weight", weight),
+        ("input", input_weight),
+        ("bias", bias),
+        ("relaxation", relaxation),
+    ]
     weights = p.moves.model_dump()
     return [(name, weights[name], fn) for name, fn in table if weights[name] > 0]
 
@@ -133,16 +142,22 @@ def grow(s: NetState, k: int, p: AnnealedRnnParams, rng: np.random.Generator) ->
     """Append k elements wired like the initial network (constructive growth, 6.4.5)."""
     m = s.size + k
     C = np.zeros((m, m))
-    C[:s.size, :s.size] = s.C
+    C[: s.size, : s.size] = s.C
     new = np.zeros((m, m), dtype=bool)
-    new[s.size:, :] = True
-    new[:, s.size:] = True
+    new[s.size :, :] = True
+    new[:, s.size :] = True
     mask = new & (rng.random((m, m)) < p.connectivity)
     C[mask] = rng.standard_normal(int(mask.sum()))
+
     def rows(B, std):
-        extra = np.where(rng.random((k, B.shape[1])) < p.input_connectivity, std * rng.standard_normal((k, B.shape[1])), 0.0)
+        extra = np.where(
+            rng.random((k, B.shape[1])) < p.input_connectivity, std * rng.standard_normal((k, B.shape[1])), 0.0
+        )
         return np.vstack([B, extra])
-    c0 = np.concatenate([s.c0, np.where(rng.random(k) < p.bias_connectivity, p.bias_scale * rng.standard_normal(k), 0.0)])
+
+    c0 = np.concatenate(
+        [s.c0, np.where(rng.random(k) < p.bias_connectivity, p.bias_scale * rng.standard_normal(k), 0.0)]
+    )
     lo, hi = p.relaxation if isinstance(p.relaxation, tuple) else (p.relaxation, p.relaxation)
     a = np.concatenate([s.a, rng.uniform(lo, hi, k)])
     return NetState(rescale(C, p.max_singular), rows(s.B_in, p.input_scale), rows(s.B_back, p.feedback_scale), c0, a)
@@ -158,8 +173,10 @@ class Evaluator:
 
     def __init__(self, data: TrainingData, p: AnnealedRnnParams, drives: list[np.ndarray]):
         if not data.has("validation"):
-            raise ValueError("annealed-rnn optimizes the network on a validation split; give data.split a "
-                             "validation part (e.g. {train: 0.8, validation: 0.2})")
+            raise ValueError(
+                "annealed-rnn optimizes the network on a validation split; give data.split a "
+                "validation part (e.g. {train: 0.8, validation: 0.2})"
+            )
         self.data, self.p, self.drives = data, p, drives
         self.external = p.mode == "external"
         self.lo, self.hi = data.output_bounds()
@@ -192,10 +209,17 @@ class Evaluator:
             Fv = self.data.stack("validation", F)[:, order]
             W = np.zeros((Ft.shape[1], Yt.shape[1]))
             for q in range(Yt.shape[1]):
-                path = fos_select_qr(R, QtY[:, q], float(Yt[:, q] @ Yt[:, q]), forced=(0,),
-                                     max_terms=self.p.readout.max_terms, Pv=Fv, yv=self.Yv[:, q],
-                                     patience=self.p.readout.patience)
-                W[order[path.order[:path.best]], q] = path.coef_path[path.best - 1]
+                path = fos_select_qr(
+                    R,
+                    QtY[:, q],
+                    float(Yt[:, q] @ Yt[:, q]),
+                    forced=(0,),
+                    max_terms=self.p.readout.max_terms,
+                    Pv=Fv,
+                    yv=self.Yv[:, q],
+                    patience=self.p.readout.patience,
+                )
+                W[order[path.order[: path.best]], q] = path.coef_path[path.best - 1]
             return W
         # Normal equations of the centred features: centring removes the large common-mode
         # eigenvalue of the Gram matrix, so far more of its spectrum stays above the rounding level
@@ -227,13 +251,29 @@ class Evaluator:
             pred = self.data.stack("validation", self._buffers) @ W
         else:
             m, nv = state.size, self.drives[0].shape[1]
-            Wx, Wd, w0 = W[:m].T.copy(), (W[m:m + nv].T.copy() if self.p.readout.direct else np.zeros((W.shape[1], nv))), W[-1].copy()
+            Wx, Wd, w0 = (
+                W[:m].T.copy(),
+                (W[m : m + nv].T.copy() if self.p.readout.direct else np.zeros((W.shape[1], nv))),
+                W[-1].copy(),
+            )
             args = state.kernel_args(self.p.relaxation_gain)
             runs = []
             for s in self.data.series:
-                _, yhat, _, div = kernels.free_run(*args, np.ascontiguousarray(s.u), np.ascontiguousarray(s.y),
-                                                   min(self.p.tune_in, s.n), 0.0, Wx, Wd, w0, self.y_rest,
-                                                   self.lo, self.hi, np.zeros(m), False)
+                _, yhat, _, div = kernels.free_run(
+                    *args,
+                    np.ascontiguousarray(s.u),
+                    np.ascontiguousarray(s.y),
+                    min(self.p.tune_in, s.n),
+                    0.0,
+                    Wx,
+                    Wd,
+                    w0,
+                    self.y_rest,
+                    self.lo,
+                    self.hi,
+                    np.zeros(m),
+                    False,
+                )
                 if div >= 0:
                     return np.inf
                 runs.append(yhat)

@@ -1,4 +1,5 @@
 """Built-in detectors of ``dynmodel diagnose`` (entry-point group ``dynmodel.detectors``), one module each."""
+
 from .delay import MissingDelay
 from .direction import DirectionDependence
 from .drift import SensorDrift
@@ -9,5 +10,14 @@ from .nonlinearity import StaticNonlinearity
 from .oscillation import UnmodeledOscillation
 from .reliability import UnreliableModel
 
-__all__ = ["MissingDelay", "DirectionDependence", "SensorDrift", "FreeRunInstability", "InsufficientMemory",
-           "NoiseBias", "StaticNonlinearity", "UnmodeledOscillation", "UnreliableModel"]
+__all__ = [
+    "MissingDelay",
+    "DirectionDependence",
+    "SensorDrift",
+    "FreeRunInstability",
+    "InsufficientMemory",
+    "NoiseBias",
+    "StaticNonlinearity",
+    "UnmodeledOscillation",
+    "UnreliableModel",
+]

@@ -7,6 +7,7 @@ to the table (written out in full when the spec relied on the default table). Ca
 (degree, lags, network size, leaky elements, rescaling) are family specific; for a family not
 listed here only the data-level extensions are offered.
 """
+
 from __future__ import annotations
 
 import math
@@ -60,8 +61,9 @@ def lags_patch(ctx: Context, table: dict[str, list[int]]) -> dict[str, Any]:
     return params_patch(lags={k: _compact(sorted(set(v))) for k, v in table.items()})
 
 
-def with_inputs(ctx: Context, delay_lines: list[int] = (), derived: list[dict[str, Any]] = (),
-                lags: list[int] | None = None) -> dict[str, Any]:
+def with_inputs(
+    ctx: Context, delay_lines: list[int] = (), derived: list[dict[str, Any]] = (), lags: list[int] | None = None
+) -> dict[str, Any]:
     """Patch adding delay lines and derived inputs; a narx model gets ``lags`` (default [0, 1, 2]) of the
     new channels in its lag table."""
     data: dict[str, Any] = {}
@@ -71,8 +73,9 @@ def with_inputs(ctx: Context, delay_lines: list[int] = (), derived: list[dict[st
     if delays:
         data["delay_lines"] = sorted(old_delays + delays)
         new_channels += [f"{u}@{d}" for d in delays for u in ctx.input_names]
-    old_items = [{k: v for k, v in item.items() if v is not None}
-                 for item in ctx.resolved["data"].get("derived_inputs") or []]
+    old_items = [
+        {k: v for k, v in item.items() if v is not None} for item in ctx.resolved["data"].get("derived_inputs") or []
+    ]
     names = {channel_name(item) for item in old_items}
     items = [item for item in derived if channel_name(item) not in names]
     if items:
@@ -101,28 +104,54 @@ def stabilizers(ctx: Context) -> list[Extension]:
     cost = ctx.spec.cost
     if ctx.family == NARX:
         if cost != "mse_inf":
-            out.append(Extension("estimate on the free-running error (cost: mse_inf; error propagation when the "
-                                 "least-squares model diverges, thesis 6.3.2)", {"cost": "mse_inf"}))
+            out.append(
+                Extension(
+                    "estimate on the free-running error (cost: mse_inf; error propagation when the "
+                    "least-squares model diverges, thesis 6.3.2)",
+                    {"cost": "mse_inf"},
+                )
+            )
         if ctx.params.get("selection", "one_step") == "one_step" and ctx.params.get("terms") is None:
-            out.append(Extension("select the terms on the free-running error (selection: free_run, cost: mse_inf): a "
-                                 "structure chosen one step ahead need not work in free run (thesis 3.1.4)",
-                                 merge_patches({"cost": "mse_inf"}, params_patch(selection="free_run"))))
+            out.append(
+                Extension(
+                    "select the terms on the free-running error (selection: free_run, cost: mse_inf): a "
+                    "structure chosen one step ahead need not work in free run (thesis 3.1.4)",
+                    merge_patches({"cost": "mse_inf"}, params_patch(selection="free_run")),
+                )
+            )
         if ctx.params.get("bounds") is None:
-            out.append(Extension("clip the free-running output to the training range widened by 10 % (eq. 6.25)",
-                                 params_patch(bounds=0.1)))
+            out.append(
+                Extension(
+                    "clip the free-running output to the training range widened by 10 % (eq. 6.25)",
+                    params_patch(bounds=0.1),
+                )
+            )
         if ctx.params.get("ridge") is None and ctx.params.get("selection") != "free_run":
-            out.append(Extension("ridge regression of the weights, factor chosen on validation (thesis 6.3.2)",
-                                 params_patch(ridge="auto")))
+            out.append(
+                Extension(
+                    "ridge regression of the weights, factor chosen on validation (thesis 6.3.2)",
+                    params_patch(ridge="auto"),
+                )
+            )
         degree = int(ctx.params.get("degree", 2))
         if degree > 2 and ctx.params.get("terms") is None:
-            out.append(Extension(f"a lower polynomial degree ({degree - 2}, was {degree}): smaller models are often the "
-                                 "stable ones (thesis 3.1.4)", params_patch(degree=degree - 2)))
+            out.append(
+                Extension(
+                    f"a lower polynomial degree ({degree - 2}, was {degree}): smaller models are often the "
+                    "stable ones (thesis 3.1.4)",
+                    params_patch(degree=degree - 2),
+                )
+            )
         return out
     if cost != "mse_inf":
         out.append(Extension("estimate on the free-running error (cost: mse_inf)", {"cost": "mse_inf"}))
     if ctx.family in NETWORKS and ctx.params.get("mode") == "external":
-        out.append(Extension("internal mode: a reliable network driven by the input only (thesis 5.3.2)",
-                             params_patch(mode="internal")))
+        out.append(
+            Extension(
+                "internal mode: a reliable network driven by the input only (thesis 5.3.2)",
+                params_patch(mode="internal"),
+            )
+        )
     return out
 
 
@@ -136,14 +165,28 @@ def more_memory(ctx: Context, tau: int) -> list[Extension]:
         if not any(table.get(y) for y in ctx.output_names):
             for y in ctx.output_names:
                 table[y] = list(DEFAULT_OUTPUT_LAGS)
-            out.append(Extension("feed the past output back (output lags [1, 2]): a recursive model remembers the "
-                                 "whole input history", lags_patch(ctx, table)))
+            out.append(
+                Extension(
+                    "feed the past output back (output lags [1, 2]): a recursive model remembers the "
+                    "whole input history",
+                    lags_patch(ctx, table),
+                )
+            )
     delays = sorted({max(1, int(tau)), max(2, 2 * int(tau))})
-    out.append(Extension(f"delay lines at {delays} samples ({', '.join(f'{d * st:.4g}' for d in delays)} s): external "
-                         "memory of the input (thesis 6.3.2)", with_inputs(ctx, delay_lines=delays, lags=[0])))
+    out.append(
+        Extension(
+            f"delay lines at {delays} samples ({', '.join(f'{d * st:.4g}' for d in delays)} s): external "
+            "memory of the input (thesis 6.3.2)",
+            with_inputs(ctx, delay_lines=delays, lags=[0]),
+        )
+    )
     if ctx.family in NETWORKS:
-        out.append(Extension("leaky elements with relaxation drawn from [0.5, 0.99] (eq. 6.21): slower internal "
-                             "memory", params_patch(relaxation=[0.5, 0.99], relaxation_gain=True)))
+        out.append(
+            Extension(
+                "leaky elements with relaxation drawn from [0.5, 0.99] (eq. 6.21): slower internal memory",
+                params_patch(relaxation=[0.5, 0.99], relaxation_gain=True),
+            )
+        )
     return out
 
 
@@ -159,9 +202,14 @@ def more_nonlinearity(ctx: Context) -> list[Extension]:
     if ctx.family in NETWORKS:
         scale = float(ctx.params.get("input_scale", 1.0))
         size = int(ctx.params.get("size", 100))
-        return [Extension(f"input weights twice as strong (input_scale {2 * scale:g}): the elements work further into "
-                          "their nonlinear range", params_patch(input_scale=2 * scale)),
-                Extension(f"a larger network ({2 * size} elements)", params_patch(size=2 * size))]
+        return [
+            Extension(
+                f"input weights twice as strong (input_scale {2 * scale:g}): the elements work further into "
+                "their nonlinear range",
+                params_patch(input_scale=2 * scale),
+            ),
+            Extension(f"a larger network ({2 * size} elements)", params_patch(size=2 * size)),
+        ]
     return []
 
 
@@ -181,12 +229,21 @@ def faster_dynamics(ctx: Context, period: float) -> list[Extension]:
                 table[u] = sorted(set(table.get(u, [])) | set(range(0, q + 1)))
         for y in ctx.output_names:
             table[y] = sorted(set(table.get(y, [])) | set(range(1, 5)))
-        return [Extension(f"short delays: input lags 0..{q}, output lags 1..4 (about half the {period:.3g}-sample "
-                          "period)", lags_patch(ctx, table))]
+        return [
+            Extension(
+                f"short delays: input lags 0..{q}, output lags 1..4 (about half the {period:.3g}-sample period)",
+                lags_patch(ctx, table),
+            )
+        ]
     out = []
     short = sorted({max(1, round(period / 4)), max(1, round(period / 2))})
-    out.append(Extension(f"short-delay inputs: delay lines at {short} samples (a quarter and half of the "
-                         f"{period:.3g}-sample period)", with_inputs(ctx, delay_lines=short)))
+    out.append(
+        Extension(
+            f"short-delay inputs: delay lines at {short} samples (a quarter and half of the "
+            f"{period:.3g}-sample period)",
+            with_inputs(ctx, delay_lines=short),
+        )
+    )
     if ctx.family in NETWORKS:
         size = int(ctx.params.get("size", 100))
         out.append(Extension(f"a larger network ({2 * size} elements)", params_patch(size=2 * size)))
@@ -196,13 +253,25 @@ def faster_dynamics(ctx: Context, period: float) -> list[Extension]:
 def rescale(ctx: Context) -> list[Extension]:
     """Make a network reliable again: largest singular value 0.95 (eq. 4.51, thesis 5.3.1)."""
     if ctx.family == "esn":
-        ext = [Extension("rescale C to a largest singular value of 0.95 (reliable by eq. 4.51)",
-                         params_patch(scale={"by": "singular", "value": 0.95}))]
+        ext = [
+            Extension(
+                "rescale C to a largest singular value of 0.95 (reliable by eq. 4.51)",
+                params_patch(scale={"by": "singular", "value": 0.95}),
+            )
+        ]
         if ctx.params.get("mode") == "external":
-            ext.append(Extension("internal mode with C rescaled to a largest singular value of 0.95",
-                                 params_patch(mode="internal", scale={"by": "singular", "value": 0.95})))
+            ext.append(
+                Extension(
+                    "internal mode with C rescaled to a largest singular value of 0.95",
+                    params_patch(mode="internal", scale={"by": "singular", "value": 0.95}),
+                )
+            )
         return ext
     if ctx.family == "annealed-rnn":
-        return [Extension("keep the largest singular value of C at 0.9 and the relaxation below 0.5",
-                          params_patch(max_singular=0.9, initial_singular=0.85, relaxation=[0.0, 0.5]))]
+        return [
+            Extension(
+                "keep the largest singular value of C at 0.9 and the relaxation below 0.5",
+                params_patch(max_singular=0.9, initial_singular=0.85, relaxation=[0.0, 0.5]),
+            )
+        ]
     return []

@@ -9,6 +9,7 @@ many lags at level alpha (per lag, the 99 % bound is 2.576 s). Score: the share 
 mean square that the raw input at lags k-2 .. k+2 explains beyond the input at the lags the model
 already sees (and beyond a drift: two slow functions of time).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -67,20 +68,35 @@ class MissingDelay(Detector):
         name = ctx.input_names[j]
         evidence = {
             "statistic": "prewhitened cross-correlation of residual and input, Sidak bound over the searched lags",
-            "input": name, "output": ctx.output_names[k], "lag_samples": lag, "lag_seconds": lag * st,
-            "correlation": float(r[lag]), "z": zmax, "bound_99_per_lag": Z99 * float(sd[lag]),
+            "input": name,
+            "output": ctx.output_names[k],
+            "lag_samples": lag,
+            "lag_seconds": lag * st,
+            "correlation": float(r[lag]),
+            "z": zmax,
+            "bound_99_per_lag": Z99 * float(sd[lag]),
             "bound_family": zcrit * float(sd[lag]),
-            "p_value": p, "alpha": ctx.settings.alpha, "lags_searched": [int(memory + 1), int(ctx.max_lag)],
-            "model_memory_samples": int(memory), "prewhitening_ar_order": order, "explained_share": share,
+            "p_value": p,
+            "alpha": ctx.settings.alpha,
+            "lags_searched": [int(memory + 1), int(ctx.max_lag)],
+            "model_memory_samples": int(memory),
+            "prewhitening_ar_order": order,
+            "explained_share": share,
         }
-        summary = (f"{ctx.output_names[k]} residual correlates with {name} {lag} samples ({lag * st:.4g} s) back: "
-                   f"r = {r[lag]:.3f} against a bound of {zcrit * sd[lag]:.3f} (model memory {memory} samples); the input "
-                   f"there explains {100 * share:.1f} % of the residual")
+        summary = (
+            f"{ctx.output_names[k]} residual correlates with {name} {lag} samples ({lag * st:.4g} s) back: "
+            f"r = {r[lag]:.3f} against a bound of {zcrit * sd[lag]:.3f} (model memory {memory} samples); the input "
+            f"there explains {100 * share:.1f} % of the residual"
+        )
         if ctx.family == NARX:
             d = max(1, lag - 1)
-            ext = Extension(f"delay line at {d} samples ({d * st:.4g} s) with lags 0-2: {name} at {d}..{d + 2} samples "
-                            "back (thesis 6.3.2)", with_inputs(ctx, delay_lines=[d], lags=[0, 1, 2]))
+            ext = Extension(
+                f"delay line at {d} samples ({d * st:.4g} s) with lags 0-2: {name} at {d}..{d + 2} samples "
+                "back (thesis 6.3.2)",
+                with_inputs(ctx, delay_lines=[d], lags=[0, 1, 2]),
+            )
         else:
-            ext = Extension(f"delay line at {lag} samples ({lag * st:.4g} s) (thesis 6.3.2)",
-                            with_inputs(ctx, delay_lines=[lag]))
+            ext = Extension(
+                f"delay line at {lag} samples ({lag * st:.4g} s) (thesis 6.3.2)", with_inputs(ctx, delay_lines=[lag])
+            )
         return self.finding(ctx, share, significant, summary, evidence, [ext])

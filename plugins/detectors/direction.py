@@ -10,6 +10,7 @@ are not direction effects). Statistic: the out-of-sample incremental R^2 (fit on
 validation) with its batch-means p-value (:mod:`dynmodel.diagnose.dependence`). Score: that share of
 the residual mean square.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -32,7 +33,7 @@ def direction_features(u_segs: list[np.ndarray], deadband: float, span: float) -
         d, s = reversals(u, deadband)
         count += int(np.sum(d[1:] != d[:-1]))
         x = np.abs(s) / span
-        feats.append(np.column_stack([d, d * x, d * x ** 2, d * np.exp(-x / 0.05), d * np.exp(-x / 0.2)]))
+        feats.append(np.column_stack([d, d * x, d * x**2, d * np.exp(-x / 0.05), d * np.exp(-x / 0.2)]))
         dirs.append(d)
     return np.vstack(feats), np.concatenate(dirs), count
 
@@ -58,8 +59,7 @@ class DirectionDependence(Detector):
             if count > MAX_REVERSAL_RATE * n:
                 continue
             level = (u - 0.5 * (lo + hi)) / (0.5 * span)
-            base = np.column_stack([level, level ** 2, level ** 3, np.vstack(lagged(u_segs, [1, 2])),
-                                    ctx.trend_features()])
+            base = np.column_stack([level, level**2, level**3, np.vstack(lagged(u_segs, [1, 2])), ctx.trend_features()])
             for k in range(len(ctx.output_names)):
                 e = np.concatenate(ctx.residuals(k))
                 dep = holdout_share(e, base, F, check)
@@ -73,24 +73,38 @@ class DirectionDependence(Detector):
         significant = ctx.judge(dep.p_value, dep.share, k)
         evidence = {
             "statistic": "partial R^2 of direction and travel-since-reversal features beyond the input level, "
-                         "out of sample (fit on train, judged on validation)",
-            "input": name, "output": ctx.output_names[k], **dep.to_json(), "alpha": ctx.settings.alpha,
-            "deadband": deadband, "reversals": count, "mean_stroke_samples": ctx.n / max(count, 1),
+            "out of sample (fit on train, judged on validation)",
+            "input": name,
+            "output": ctx.output_names[k],
+            **dep.to_json(),
+            "alpha": ctx.settings.alpha,
+            "deadband": deadband,
+            "reversals": count,
+            "mean_stroke_samples": ctx.n / max(count, 1),
             "residual_mean_moving_up": float(up.mean()) if up.size else None,
             "residual_mean_moving_down": float(down.mean()) if down.size else None,
         }
         gap = (evidence["residual_mean_moving_up"] or 0.0) - (evidence["residual_mean_moving_down"] or 0.0)
-        summary = (f"{ctx.output_names[k]} residual depends on the direction of {name} and its travel since the last "
-                   f"reversal: {100 * dep.share:.1f} % of its mean square (p = {dep.p_value:.2g}); moving up minus "
-                   f"moving down: {gap:.4g} ({count} reversals)")
+        summary = (
+            f"{ctx.output_names[k]} residual depends on the direction of {name} and its travel since the last "
+            f"reversal: {100 * dep.share:.1f} % of its mean square (p = {dep.p_value:.2g}); moving up minus "
+            f"moving down: {gap:.4g} ({count} reversals)"
+        )
         db = float(f"{deadband:.3g}")
         items = [{"direction": name, "deadband": db}, {"since_reversal": name, "deadband": db}]
-        extensions = [Extension(f"direction features of {name}: its direction of motion and travel since the last "
-                                "reversal as inputs", with_inputs(ctx, derived=items, lags=[0] if ctx.family == NARX
-                                                                  else None))]
+        extensions = [
+            Extension(
+                f"direction features of {name}: its direction of motion and travel since the last reversal as inputs",
+                with_inputs(ctx, derived=items, lags=[0] if ctx.family == NARX else None),
+            )
+        ]
         if ctx.family == NARX:
-            extensions.append(Extension("a dynamical family: a leaky echo state network (200 elements, eq. 6.21) "
-                                        "driven by the input", _switch_to_esn(ctx)))
+            extensions.append(
+                Extension(
+                    "a dynamical family: a leaky echo state network (200 elements, eq. 6.21) driven by the input",
+                    _switch_to_esn(ctx),
+                )
+            )
         return self.finding(ctx, dep.share, significant, summary, evidence, extensions)
 
 

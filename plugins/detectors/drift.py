@@ -9,6 +9,7 @@ transform (AR(1) coefficient of the alternative's block residuals); the drift te
 with an F-test, the smallest p-value Bonferroni-corrected for the number of alternatives. Score: the
 variance of the fitted drift over the samples, as a share of the residual mean square.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -63,9 +64,9 @@ def _f_test(e: np.ndarray, X0: np.ndarray, D: np.ndarray, seg: np.ndarray) -> tu
     df2 = len(e_t) - _rank(X1_t)
     rss0, rss1 = float(r0 @ r0), float(r1 @ r1)
     if q <= 0 or df2 <= 0 or rss1 <= 0:
-        return 0.0, 1.0, rho, coef[X0.shape[1]:]
+        return 0.0, 1.0, rho, coef[X0.shape[1] :]
     F = ((rss0 - rss1) / q) / (rss1 / df2)
-    return F, float(stats.f.sf(F, q, df2)), rho, coef[X0.shape[1]:]
+    return F, float(stats.f.sf(F, q, df2)), rho, coef[X0.shape[1] :]
 
 
 def _terms(tau: float | None, linear: bool) -> list:
@@ -150,26 +151,47 @@ class SensorDrift(Detector):
         significant = ctx.judge(p_adj, share, k)
         t0 = float(min(s.start for s in segs) * ctx.sampling_time)
         t_end = float(max(s.stop for s in segs) * ctx.sampling_time)
-        change = float(sum(c * (time_function(fn, np.array([t_end])) - time_function(fn, np.array([t0])))[0]
-                           for c, fn in zip(coef, terms)))
+        change = float(
+            sum(
+                c * (time_function(fn, np.array([t_end])) - time_function(fn, np.array([t0])))[0]
+                for c, fn in zip(coef, terms)
+            )
+        )
         evidence = {
             "statistic": "F-test of drift terms on block means beyond the input (AR(1)-corrected, Bonferroni over "
-                         f"{len(alternatives)} drift shapes)",
-            "output": ctx.output_names[k], "F": F, "p_value": p_adj, "alpha": ctx.settings.alpha,
-            "terms": terms, "tau_seconds": tau, "coefficients": [float(c) for c in coef],
-            "drift_change": change, "drift_share": share, "input_explained_share": input_share,
-            "blocks": K, "block_length": L, "block_ar1": rho, "window": [t0, t_end],
+            f"{len(alternatives)} drift shapes)",
+            "output": ctx.output_names[k],
+            "F": F,
+            "p_value": p_adj,
+            "alpha": ctx.settings.alpha,
+            "terms": terms,
+            "tau_seconds": tau,
+            "coefficients": [float(c) for c in coef],
+            "drift_change": change,
+            "drift_share": share,
+            "input_explained_share": input_share,
+            "blocks": K,
+            "block_length": L,
+            "block_ar1": rho,
+            "window": [t0, t_end],
         }
         shape = " + ".join("c t" if fn == "linear" else f"c (1 - exp(-t / {fn['saturating']:g} s))" for fn in terms)
-        summary = (f"{ctx.output_names[k]}: a drift {shape} changes the residual by {change:.4g} over "
-                   f"[{t0:.4g}, {t_end:.4g}] s, {100 * share:.1f} % of its mean square (F = {F:.3g}, p = {p_adj:.2g}); "
-                   f"the input explains {100 * max(input_share, 0):.0f} % of the slow residual")
+        summary = (
+            f"{ctx.output_names[k]}: a drift {shape} changes the residual by {change:.4g} over "
+            f"[{t0:.4g}, {t_end:.4g}] s, {100 * share:.1f} % of its mean square (F = {F:.3g}, p = {p_adj:.2g}); "
+            f"the input explains {100 * max(input_share, 0):.0f} % of the slow residual"
+        )
         derived = [{"time": fn} for fn in terms]
         extensions = [
-            Extension(f"a drift term in the output model: time inputs {', '.join(_name(fn) for fn in terms)}",
-                      with_inputs(ctx, derived=derived, lags=[0])),
-            Extension(f"detrend the output by {', '.join(_name(fn) for fn in terms)} (fitted on the training data, "
-                      "added back to predictions)", {"data": {"detrend": terms}}),
+            Extension(
+                f"a drift term in the output model: time inputs {', '.join(_name(fn) for fn in terms)}",
+                with_inputs(ctx, derived=derived, lags=[0]),
+            ),
+            Extension(
+                f"detrend the output by {', '.join(_name(fn) for fn in terms)} (fitted on the training data, "
+                "added back to predictions)",
+                {"data": {"detrend": terms}},
+            ),
         ]
         return self.finding(ctx, share, significant, summary, evidence, extensions)
 

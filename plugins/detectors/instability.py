@@ -11,6 +11,7 @@ make one step ahead (thesis 3.1.4, 6.3.2); the score is then 1 - NMSE_1 / NMSE. 
 every split here: stability is a property of the model, and the thesis (6.3.2) judges it by running
 through the whole record.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -39,13 +40,31 @@ class FreeRunInstability(Detector):
                 k = fit.runs[rec].diverged_at
                 if k is not None and k < b:
                     name = fit.ds.recordings[rec].name
-                    evidence = {"statistic": "divergence of the free run (left the training output range widened by "
-                                             "10 range widths)", "diverged": True, "split": split, "recording": name,
-                                "sample": int(k), "time": float(k * st), "window": [float(k * st), float(k * st)]}
-                    return self.finding(ctx, 1.0, True, f"the free run diverges at sample {k} (t = {k * st:.6g} s) of "
-                                        f"'{name}' ({split} split)", evidence, stabilizers(ctx))
-        measured = np.concatenate([fit.ds.recordings[r].y[a:b] for s in ("train", "validation", "test")
-                                   for r, a, b in fit.ds.scored(s, warmup=fit.model.warmup)])
+                    evidence = {
+                        "statistic": "divergence of the free run (left the training output range widened by "
+                        "10 range widths)",
+                        "diverged": True,
+                        "split": split,
+                        "recording": name,
+                        "sample": int(k),
+                        "time": float(k * st),
+                        "window": [float(k * st), float(k * st)],
+                    }
+                    return self.finding(
+                        ctx,
+                        1.0,
+                        True,
+                        f"the free run diverges at sample {k} (t = {k * st:.6g} s) of '{name}' ({split} split)",
+                        evidence,
+                        stabilizers(ctx),
+                    )
+        measured = np.concatenate(
+            [
+                fit.ds.recordings[r].y[a:b]
+                for s in ("train", "validation", "test")
+                for r, a, b in fit.ds.scored(s, warmup=fit.model.warmup)
+            ]
+        )
         lo, hi = measured.min(axis=0), measured.max(axis=0)
         width = np.maximum(hi - lo, np.finfo(float).tiny)
         worst, where, total, outside = 0.0, None, 0.0, 0.0
@@ -65,17 +84,31 @@ class FreeRunInstability(Detector):
         lost = self._lost_track(ctx)
         if lost is not None and not significant:
             return lost
-        evidence = {"statistic": "largest excursion of the free run beyond the measured output range, in range widths",
-                    "excursion": worst, "threshold": GROWTH, "diverged": False, "share_out_of_range": score}
+        evidence = {
+            "statistic": "largest excursion of the free run beyond the measured output range, in range widths",
+            "excursion": worst,
+            "threshold": GROWTH,
+            "diverged": False,
+            "share_out_of_range": score,
+        }
         if where is not None:
             split, rec, k = where
-            evidence.update(split=split, recording=fit.ds.recordings[rec].name, sample=int(k), time=float(k * st),
-                            window=[float(k * st), float(k * st)])
-        summary = (f"the free run grows to {worst:.2g} range widths beyond the measured output range "
-                   f"(sample {where[2]}, {where[0]} split)" if significant and where else
-                   f"the free run stays within {max(worst, 0.0):.2g} range widths of the measured output range")
-        return self.finding(ctx, score if significant else 0.0, significant, summary, evidence,
-                            stabilizers(ctx) if significant else [])
+            evidence.update(
+                split=split,
+                recording=fit.ds.recordings[rec].name,
+                sample=int(k),
+                time=float(k * st),
+                window=[float(k * st), float(k * st)],
+            )
+        summary = (
+            f"the free run grows to {worst:.2g} range widths beyond the measured output range "
+            f"(sample {where[2]}, {where[0]} split)"
+            if significant and where
+            else f"the free run stays within {max(worst, 0.0):.2g} range widths of the measured output range"
+        )
+        return self.finding(
+            ctx, score if significant else 0.0, significant, summary, evidence, stabilizers(ctx) if significant else []
+        )
 
     def _lost_track(self, ctx: Context) -> Finding | None:
         metrics = ctx.model.metrics
@@ -85,9 +118,18 @@ class FreeRunInstability(Detector):
         if free is None or one is None or free < LOST or one * AMPLIFICATION > free:
             return None
         score = 1.0 - one / free
-        evidence = {"statistic": "free-run NMSE against one-step NMSE (error accumulation in the feedback)",
-                    "diverged": False, "split": split, "nmse_free_run": free, "nmse_one_step": one,
-                    "threshold_nmse": LOST, "threshold_ratio": AMPLIFICATION, "amplification": free / max(one, 1e-300)}
-        summary = (f"the free run loses track: {split} NMSE {free:.4g} % in free run against {one:.4g} % one step "
-                   f"ahead ({free / max(one, 1e-300):.3g} x): the feedback accumulates errors")
+        evidence = {
+            "statistic": "free-run NMSE against one-step NMSE (error accumulation in the feedback)",
+            "diverged": False,
+            "split": split,
+            "nmse_free_run": free,
+            "nmse_one_step": one,
+            "threshold_nmse": LOST,
+            "threshold_ratio": AMPLIFICATION,
+            "amplification": free / max(one, 1e-300),
+        }
+        summary = (
+            f"the free run loses track: {split} NMSE {free:.4g} % in free run against {one:.4g} % one step "
+            f"ahead ({free / max(one, 1e-300):.3g} x): the feedback accumulates errors"
+        )
         return self.finding(ctx, score, True, summary, evidence, stabilizers(ctx))

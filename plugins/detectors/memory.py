@@ -10,6 +10,7 @@ with its batch-means p-value (:mod:`dynmodel.diagnose.dependence`). Score: that 
 residual mean square. The evidence names the time constant that explains most on its own beyond the
 short lags (a fine logarithmic grid over the same range).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -33,7 +34,7 @@ def moving_averages(u_segs: list[np.ndarray], taus: list[float]) -> np.ndarray:
             a = 1.0 / tau
             # start in the steady state of the first stretch's mean (a single noisy first sample would leave a
             # transient as slow as the average itself)
-            zi = signal.lfilter_zi([a], [1.0, -(1.0 - a)]) * u[:max(1, int(2 * tau))].mean()
+            zi = signal.lfilter_zi([a], [1.0, -(1.0 - a)]) * u[: max(1, int(2 * tau))].mean()
             seg.append(signal.lfilter([a], [1.0, -(1.0 - a)], u, zi=zi)[0])
         cols.append(np.column_stack(seg))
     return np.vstack(cols)
@@ -48,7 +49,7 @@ class InsufficientMemory(Detector):
         memory = ctx.memory
         m = max(memory, 2)
         longest = max(s.n for s in ctx.segments)
-        taus = [float(2 ** i * m) for i in range(1, MAX_AVERAGES + 1) if 2 ** i * m <= longest / 20]
+        taus = [float(2**i * m) for i in range(1, MAX_AVERAGES + 1) if 2**i * m <= longest / 20]
         if not taus:
             return None
         short = sorted(set(np.linspace(0, memory, num=min(memory + 1, 12)).round().astype(int).tolist()))
@@ -66,20 +67,26 @@ class InsufficientMemory(Detector):
         dep, j, k, base, F, e = best
         grid = np.geomspace(taus[0], taus[-1], num=max(2, 6 * len(taus)))
         lags_only = base[:, :-2]  # without the trend terms, which would soak up the slowest averages
-        singles = [partial_share(e, lags_only, moving_averages(ctx.inputs(j), [float(t)]))
-                   for t in grid]
+        singles = [partial_share(e, lags_only, moving_averages(ctx.inputs(j), [float(t)])) for t in grid]
         tau = float(grid[int(np.argmax(singles))])
         name = ctx.input_names[j]
         st = ctx.sampling_time
         significant = ctx.judge(dep.p_value, dep.share, k)
         evidence = {
             "statistic": "partial R^2 of exponential moving averages of the input beyond the lags within the model's "
-                         "memory, out of sample (fit on train, judged on validation)",
-            "input": name, "output": ctx.output_names[k], **dep.to_json(), "alpha": ctx.settings.alpha,
-            "model_memory_samples": int(memory), "time_constants_samples": taus, "best_time_constant_samples": tau,
+            "memory, out of sample (fit on train, judged on validation)",
+            "input": name,
+            "output": ctx.output_names[k],
+            **dep.to_json(),
+            "alpha": ctx.settings.alpha,
+            "model_memory_samples": int(memory),
+            "time_constants_samples": taus,
+            "best_time_constant_samples": tau,
             "best_time_constant_seconds": tau * st,
         }
-        summary = (f"{ctx.output_names[k]} residual depends on {name} averaged over about {tau:.0f} samples "
-                   f"({tau * st:.4g} s), beyond the model's memory of {memory} samples: {100 * dep.share:.1f} % of "
-                   f"its mean square (p = {dep.p_value:.2g})")
+        summary = (
+            f"{ctx.output_names[k]} residual depends on {name} averaged over about {tau:.0f} samples "
+            f"({tau * st:.4g} s), beyond the model's memory of {memory} samples: {100 * dep.share:.1f} % of "
+            f"its mean square (p = {dep.p_value:.2g})"
+        )
         return self.finding(ctx, dep.share, significant, summary, evidence, more_memory(ctx, int(round(tau))))

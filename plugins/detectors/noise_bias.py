@@ -10,6 +10,7 @@ NMSE of the free-running fit. With noisy outputs both approach the noise share o
 variance; without noise one-step prediction is far easier than free run. Score: the relative
 reduction of the free-run mean square, 1 - MSE_inf / MSE_1.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -33,8 +34,11 @@ class NoiseBias(Detector):
         metrics = ctx.model.metrics
         if ctx.spec.cost != "mse1" or not any("nmse_1" in m for m in metrics.values()):
             return None
-        same = [abs(m["nmse_1"] - m["nmse"]) <= 1e-9 * max(abs(m["nmse"]), 1e-300)
-                for m in metrics.values() if m.get("nmse") is not None and "nmse_1" in m]
+        same = [
+            abs(m["nmse_1"] - m["nmse"]) <= 1e-9 * max(abs(m["nmse"]), 1e-300)
+            for m in metrics.values()
+            if m.get("nmse") is not None and "nmse_1" in m
+        ]
         if same and all(same):
             return None  # no output feedback: the one-step prediction is the free run
         split = "validation" if "validation" in metrics else "train"
@@ -42,8 +46,13 @@ class NoiseBias(Detector):
         try:
             other = ctx.refit({"cost": "mse_inf"}, label="cost mse_inf")
         except DynmodelError as exc:
-            return self.finding(ctx, 0.0, False, f"the free-running refit failed: {exc.what}",
-                                {"statistic": "free-running refit", "error": exc.line()})
+            return self.finding(
+                ctx,
+                0.0,
+                False,
+                f"the free-running refit failed: {exc.what}",
+                {"statistic": "free-running refit", "error": exc.line()},
+            )
         y, y1 = ctx.fit.residual(split)
         _, y2 = other.residual(split)
         var = np.maximum(np.var(y, axis=0), np.finfo(float).tiny)
@@ -61,23 +70,44 @@ class NoiseBias(Detector):
         significant = ratio >= SIGNATURE and ctx.judge(p, share, k)
         fits = {}
         for label, f in (("mse1", ctx.fit), ("mse_inf", other)):
-            fits[label] = {s: {"nmse_free_run": f.metrics[s].get("nmse"), "nmse_one_step": f.metrics[s].get("nmse_1")}
-                           for s in ("train", "validation") if s in f.metrics}
+            fits[label] = {
+                s: {"nmse_free_run": f.metrics[s].get("nmse"), "nmse_one_step": f.metrics[s].get("nmse_1")}
+                for s in ("train", "validation")
+                if s in f.metrics
+            }
         evidence = {
             "statistic": "paired reduction of the free-run squared error by free-running estimation, batch-means "
-                         "signed-rank test",
-            "split": split, "t": t, "batches": batches, "p_value": p, "alpha": ctx.settings.alpha, "relative_reduction": share,
-            "one_step_nmse_of_mse1_fit": one_step, "free_run_nmse_of_mse_inf_fit": free_inf,
-            "noise_signature": ratio, "signature_threshold": SIGNATURE, "fits": fits,
+            "signed-rank test",
+            "split": split,
+            "t": t,
+            "batches": batches,
+            "p_value": p,
+            "alpha": ctx.settings.alpha,
+            "relative_reduction": share,
+            "one_step_nmse_of_mse1_fit": one_step,
+            "free_run_nmse_of_mse_inf_fit": free_inf,
+            "noise_signature": ratio,
+            "signature_threshold": SIGNATURE,
+            "fits": fits,
         }
         verb = "lowers" if share > 0 else "does not lower"
-        summary = (f"free-running estimation {verb} the {split} free-run NMSE from {ctx.fit.nmse(split):.4g} % to "
-                   f"{free_inf:.4g} % ({100 * share:.0f} %, p = {p:.2g}); the one-step error ({one_step:.4g} %) is "
-                   + (f"{ratio:.2g} x that level, as output noise makes it" if ratio >= SIGNATURE else
-                      f"far below it ({ratio:.2g} x): no sign of output noise"))
-        extensions = [Extension("estimate the weights on the free-running error (cost: mse_inf, thesis 3.2)",
-                                {"cost": "mse_inf"})]
+        summary = (
+            f"free-running estimation {verb} the {split} free-run NMSE from {ctx.fit.nmse(split):.4g} % to "
+            f"{free_inf:.4g} % ({100 * share:.0f} %, p = {p:.2g}); the one-step error ({one_step:.4g} %) is "
+            + (
+                f"{ratio:.2g} x that level, as output noise makes it"
+                if ratio >= SIGNATURE
+                else f"far below it ({ratio:.2g} x): no sign of output noise"
+            )
+        )
+        extensions = [
+            Extension("estimate the weights on the free-running error (cost: mse_inf, thesis 3.2)", {"cost": "mse_inf"})
+        ]
         if ctx.family == NARX and ctx.params.get("terms") is None and ctx.params.get("selection") != "free_run":
-            extensions.append(Extension("select the terms on the free-running error too (selection: free_run, "
-                                        "cost: mse_inf)", {"cost": "mse_inf", **params_patch(selection="free_run")}))
+            extensions.append(
+                Extension(
+                    "select the terms on the free-running error too (selection: free_run, cost: mse_inf)",
+                    {"cost": "mse_inf", **params_patch(selection="free_run")},
+                )
+            )
         return self.finding(ctx, share, significant, summary, evidence, extensions)

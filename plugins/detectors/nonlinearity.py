@@ -7,6 +7,7 @@ and two slow functions of time (nor is a drift). Statistic: the out-of-sample in
 on train, judged on validation) with its batch-means p-value (:mod:`dynmodel.diagnose.dependence`).
 Score: that share of the residual mean square.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -54,16 +55,22 @@ class StaticNonlinearity(Detector):
         name = ctx.input_names[j]
         grid = np.linspace(lo, hi, 9)
         Fg, _, _ = level_features(np.concatenate([grid, u]))
-        curve = (Fg[:len(grid)] - Fg[len(grid):].mean(axis=0)) @ dep.coef
+        curve = (Fg[: len(grid)] - Fg[len(grid) :].mean(axis=0)) @ dep.coef
         significant = ctx.judge(dep.p_value, dep.share, k)
         evidence = {
             "statistic": "partial R^2 of Legendre polynomials P2..P5 of the input level beyond its linear lags, "
-                         "out of sample (fit on train, judged on validation)",
-            "input": name, "output": ctx.output_names[k], **dep.to_json(), "alpha": ctx.settings.alpha,
-            "base_lags": lags, "level_range": [lo, hi],
+            "out of sample (fit on train, judged on validation)",
+            "input": name,
+            "output": ctx.output_names[k],
+            **dep.to_json(),
+            "alpha": ctx.settings.alpha,
+            "base_lags": lags,
+            "level_range": [lo, hi],
             "curve": {"level": grid.tolist(), "residual": curve.tolist()},
         }
-        summary = (f"{ctx.output_names[k]} residual is a nonlinear function of the level of {name}: "
-                   f"{100 * dep.share:.1f} % of its mean square (p = {dep.p_value:.2g}); the curve spans "
-                   f"{np.ptp(curve):.4g} over [{lo:.4g}, {hi:.4g}]")
+        summary = (
+            f"{ctx.output_names[k]} residual is a nonlinear function of the level of {name}: "
+            f"{100 * dep.share:.1f} % of its mean square (p = {dep.p_value:.2g}); the curve spans "
+            f"{np.ptp(curve):.4g} over [{lo:.4g}, {hi:.4g}]"
+        )
         return self.finding(ctx, dep.share, significant, summary, evidence, more_nonlinearity(ctx))

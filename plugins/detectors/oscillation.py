@@ -11,6 +11,7 @@ finer spectrum (:func:`dynmodel.diagnose.spectrum.refine_peak`). Score: the powe
 background within +-4 bins of the peak (integrated over frequency), as a share of the residual's
 mean square.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -69,7 +70,9 @@ class UnmodeledOscillation(Detector):
             m = int((~excluded).sum())
             p = float(min(1.0, spec.p_values()[i] * m))
             lo, hi = max(i - BAND, 0), min(i + BAND + 1, len(spec.freq))
-            excess = np.nansum(np.maximum(spec.power[lo:hi] - spec.background[lo:hi], 0.0)) * (spec.freq[1] - spec.freq[0])
+            excess = np.nansum(np.maximum(spec.power[lo:hi] - spec.background[lo:hi], 0.0)) * (
+                spec.freq[1] - spec.freq[0]
+            )
             e = np.concatenate(e_segs)
             share = float(min(1.0, excess / max(float(np.var(e)), np.finfo(float).tiny)))
             cand = (share, p, k, i, spec, m, e_segs)
@@ -84,13 +87,22 @@ class UnmodeledOscillation(Detector):
         significant = ctx.judge(p, share, k)
         evidence = {
             "statistic": "Welch spectrum of the residual over its running-median background, chi-square test "
-                         f"(Bonferroni over {m} bins)",
-            "output": ctx.output_names[k], "frequency_cycles_per_sample": f, "frequency_hz": f / st,
-            "period_samples": period, "period_seconds": period * st, "peak_to_background": float(spec.ratio()[i]),
-            "p_value": p, "alpha": ctx.settings.alpha, "dof": spec.dof, "band_share": share,
+            f"(Bonferroni over {m} bins)",
+            "output": ctx.output_names[k],
+            "frequency_cycles_per_sample": f,
+            "frequency_hz": f / st,
+            "period_samples": period,
+            "period_seconds": period * st,
+            "peak_to_background": float(spec.ratio()[i]),
+            "p_value": p,
+            "alpha": ctx.settings.alpha,
+            "dof": spec.dof,
+            "band_share": share,
             "resolution_cycles_per_sample": float(spec.freq[1] - spec.freq[0]),
             "input_lines_excluded": sorted(set(round(x, 6) for x in lines))[:20],
         }
-        summary = (f"{ctx.output_names[k]} residual has a spectral peak at {f / st:.4g} Hz (period {period:.3g} "
-                   f"samples), {spec.ratio()[i]:.3g} x its background (p = {p:.2g}), {100 * share:.1f} % of its power")
+        summary = (
+            f"{ctx.output_names[k]} residual has a spectral peak at {f / st:.4g} Hz (period {period:.3g} "
+            f"samples), {spec.ratio()[i]:.3g} x its background (p = {p:.2g}), {100 * share:.1f} % of its power"
+        )
         return self.finding(ctx, share, significant, summary, evidence, faster_dynamics(ctx, period))

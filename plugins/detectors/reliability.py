@@ -4,6 +4,7 @@ An unreliable model's free run depends on its initial state, not only on the inp
 residual says little about the data; the finding gets score 1 and the check's counterexamples as
 evidence. Families without a driven-system view (e.g. narx) are not checked.
 """
+
 from __future__ import annotations
 
 from dynmodel.diagnose.context import Context
@@ -26,11 +27,17 @@ class UnreliableModel(Detector):
         report = check_model(ctx.model, settings, None, ctx.spec.name)
         v = report.verdict
         significant = v.verdict == "unreliable"
-        evidence = {"statistic": "reliability check (replica test, conditional Lyapunov exponents, constant-input "
-                                 "scan)", "verdict": v.verdict, "reasons": v.reasons[:6],
-                    "counterexamples": v.counterexamples[:6], "unsettled": v.unsettled[:6],
-                    "settings": settings.to_json()}
-        summary = (f"the reliability check finds the model {v.verdict}"
-                   + (f": {v.counterexamples[0]}" if significant and v.counterexamples else ""))
-        return self.finding(ctx, 1.0 if significant else 0.0, significant, summary, evidence,
-                            rescale(ctx) if significant else [])
+        evidence = {
+            "statistic": "reliability check (replica test, conditional Lyapunov exponents, constant-input scan)",
+            "verdict": v.verdict,
+            "reasons": v.reasons[:6],
+            "counterexamples": v.counterexamples[:6],
+            "unsettled": v.unsettled[:6],
+            "settings": settings.to_json(),
+        }
+        summary = f"the reliability check finds the model {v.verdict}" + (
+            f": {v.counterexamples[0]}" if significant and v.counterexamples else ""
+        )
+        return self.finding(
+            ctx, 1.0 if significant else 0.0, significant, summary, evidence, rescale(ctx) if significant else []
+        )

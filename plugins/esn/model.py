@@ -6,6 +6,7 @@ External mode (eq. 5.42 / 5.43): the delayed output is a second drive, measured 
 measured samples. With ``cost: mse_inf`` the output weights of an external network are refined
 on free-running error by the predictor-corrector algorithm of section 5.3.2.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -14,8 +15,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from dynmodel import kernels
-from dynmodel import regression
+from dynmodel import kernels, regression
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Family, Progress, Simulation, no_progress
 
@@ -61,7 +61,11 @@ class EchoStateNetwork(Family):
         m = self.network_.size
         self.W_ = np.ascontiguousarray(fit.coef[:m].T)
         n_drive = self.network_.B.shape[1]
-        self.D_ = np.ascontiguousarray(fit.coef[m:].T) if self.params.readout.direct else np.zeros((fit.coef.shape[1], n_drive))
+        self.D_ = (
+            np.ascontiguousarray(fit.coef[m:].T)
+            if self.params.readout.direct
+            else np.zeros((fit.coef.shape[1], n_drive))
+        )
         self.w0_ = np.asarray(fit.intercept, dtype=np.float64).copy()
 
     @property
@@ -75,8 +79,8 @@ class EchoStateNetwork(Family):
     def _set_readout_vector(self, vec: np.ndarray) -> None:
         nw, nd = self.W_.size, self.D_.size
         self.W_ = vec[:nw].reshape(self.W_.shape).copy()
-        self.D_ = vec[nw:nw + nd].reshape(self.D_.shape).copy()
-        self.w0_ = vec[nw + nd:].copy()
+        self.D_ = vec[nw : nw + nd].reshape(self.D_.shape).copy()
+        self.w0_ = vec[nw + nd :].copy()
 
     def _solve_readout(self, F: np.ndarray, Y: np.ndarray, Fv: np.ndarray | None, Yv: np.ndarray | None):
         r = self.params.readout
@@ -89,8 +93,13 @@ class EchoStateNetwork(Family):
         return regression.fos(F, Y, Fv=Fv, Yv=Yv, max_terms=r.max_terms, threshold=r.threshold, patience=r.patience)
 
     # ------------------------------------------------------------------ fitting
-    def fit(self, data: TrainingData, cost: str = "mse1", rng: np.random.Generator | None = None,
-            progress: Progress = no_progress) -> "EchoStateNetwork":
+    def fit(
+        self,
+        data: TrainingData,
+        cost: str = "mse1",
+        rng: np.random.Generator | None = None,
+        progress: Progress = no_progress,
+    ) -> EchoStateNetwork:
         rng = rng if rng is not None else np.random.default_rng(0)
         self._prepare(data)
         self.network_ = build_network(self.params, data.n_inputs, data.n_outputs, rng)
@@ -104,10 +113,12 @@ class EchoStateNetwork(Family):
 
     def training_drives(self, data: TrainingData) -> list[np.ndarray]:
         """Per series: the drive in training (input, plus the measured past output in external mode)."""
-        return [np.ascontiguousarray(self._drive(s.u, _teacher_feedback(s.y) if self.external else None))
-                for s in data.series]
+        return [
+            np.ascontiguousarray(self._drive(s.u, _teacher_feedback(s.y) if self.external else None))
+            for s in data.series
+        ]
 
-    def _fit_readout(self, data: TrainingData, cost: str, progress: Progress) -> "EchoStateNetwork":
+    def _fit_readout(self, data: TrainingData, cost: str, progress: Progress) -> EchoStateNetwork:
         """Readout of ``network_`` on the training split; refinement for cost mse_inf (external mode)."""
         progress("states", None, f"driving {self.network_.size} elements")
         drives = self.training_drives(data)
@@ -115,8 +126,10 @@ class EchoStateNetwork(Family):
         feats = [self._features(X, v) for X, v in zip(states, drives)]
         F, Y = data.stack("train", feats), data.targets("train")
         if not np.isfinite(F).all():
-            raise ValueError("the external mode needs measured outputs before every training sample; "
-                             "put the test split after the training and validation splits")
+            raise ValueError(
+                "the external mode needs measured outputs before every training sample; "
+                "put the test split after the training and validation splits"
+            )
         Fv = data.stack("validation", feats) if data.has("validation") else None
         Yv = data.targets("validation") if data.has("validation") else None
         progress("readout", None, f"{self.params.readout.solver} readout on {F.shape[0]} samples")
@@ -125,8 +138,11 @@ class EchoStateNetwork(Family):
         if cost == "mse_inf" and self.external:
             self._refine(data, progress)
         elif cost == "mse_inf":
-            warnings.warn("in the internal mode the free run equals the one-step prediction (no output feedback, "
-                          "thesis 5.3.2), so cost mse_inf fits the same readout as mse1", stacklevel=2)
+            warnings.warn(
+                "in the internal mode the free run equals the one-step prediction (no output feedback, "
+                "thesis 5.3.2), so cost mse_inf fits the same readout as mse1",
+                stacklevel=2,
+            )
         return self
 
     def _free_runs(self, data: TrainingData, mix: float, store: bool):
@@ -134,9 +150,23 @@ class EchoStateNetwork(Family):
         args = self.network_.kernel_args()
         lo, hi = self._bounds
         for s in data.series:
-            out.append(kernels.free_run(*args, np.ascontiguousarray(s.u), np.ascontiguousarray(s.y),
-                                        min(self.params.tune_in, s.n), mix, self.W_, self.D_, self.w0_,
-                                        self.y_rest_, lo, hi, np.zeros(self.network_.size), store))
+            out.append(
+                kernels.free_run(
+                    *args,
+                    np.ascontiguousarray(s.u),
+                    np.ascontiguousarray(s.y),
+                    min(self.params.tune_in, s.n),
+                    mix,
+                    self.W_,
+                    self.D_,
+                    self.w0_,
+                    self.y_rest_,
+                    lo,
+                    hi,
+                    np.zeros(self.network_.size),
+                    store,
+                )
+            )
         return out
 
     def _free_run_error(self, data: TrainingData) -> float:
@@ -190,8 +220,9 @@ class EchoStateNetwork(Family):
         self._set_readout_vector(best_vec)
 
     # ------------------------------------------------------------------ prediction
-    def simulate(self, u: np.ndarray, y_measured: np.ndarray | None = None,
-                 bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Simulation:
+    def simulate(
+        self, u: np.ndarray, y_measured: np.ndarray | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> Simulation:
         self.check_fitted()
         u = np.ascontiguousarray(u, dtype=np.float64)
         if not self.external:
@@ -201,17 +232,30 @@ class EchoStateNetwork(Family):
         tune = min(self.params.tune_in, u.shape[0])
         if tune > 0 and (y_measured is None or len(y_measured) < tune):
             have = 0 if y_measured is None else len(y_measured)
-            raise ValueError(f"this external-mode network tunes in on the first {tune} measured output samples; "
-                             f"got {have}")
+            raise ValueError(
+                f"this external-mode network tunes in on the first {tune} measured output samples; got {have}"
+            )
         Y = np.zeros((0, self.n_outputs_)) if tune == 0 else np.ascontiguousarray(y_measured[:tune], dtype=np.float64)
         lo, hi = bounds if bounds is not None else (np.full(self.n_outputs_, -np.inf), np.full(self.n_outputs_, np.inf))
-        _, y, _, div = kernels.free_run(*self.network_.kernel_args(), u, Y.reshape(-1, self.n_outputs_), tune, 0.0,
-                                        self.W_, self.D_, self.w0_, self.y_rest_, lo, hi,
-                                        np.zeros(self.network_.size), False)
+        _, y, _, div = kernels.free_run(
+            *self.network_.kernel_args(),
+            u,
+            Y.reshape(-1, self.n_outputs_),
+            tune,
+            0.0,
+            self.W_,
+            self.D_,
+            self.w0_,
+            self.y_rest_,
+            lo,
+            hi,
+            np.zeros(self.network_.size),
+            False,
+        )
         return Simulation(y, None if div < 0 else int(div))
 
     def _drive_direct(self, u: np.ndarray) -> np.ndarray:
-        return u @ self.D_[:, :u.shape[1]].T
+        return u @ self.D_[:, : u.shape[1]].T
 
     def predict_one_step(self, u: np.ndarray, y_measured: np.ndarray) -> np.ndarray | None:
         if not self.external:
@@ -242,20 +286,42 @@ class EchoStateNetwork(Family):
             closed = LinearFeedback(self.W_, self.D_, self.w0_, self.params.tune_in, self.y_rest_, net.C, net.B_back)
         # model space: standard-scaled signals mostly lie within +-2
         inputs = InputDomain.from_range(names, -2 * np.ones(len(names)), 2 * np.ones(len(names)))
-        return SigmoidNetwork(net.C, net.B, net.c0, net.a, net.g, inputs, closed, name="esn",
-                              description=f"echo state network, {net.size} elements, {self.params.mode} mode")
+        return SigmoidNetwork(
+            net.C,
+            net.B,
+            net.c0,
+            net.a,
+            net.g,
+            inputs,
+            closed,
+            name="esn",
+            description=f"echo state network, {net.size} elements, {self.params.mode} mode",
+        )
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         net = self.network_
         arrays = {
-            "C_indptr": net.C.indptr.astype(np.int64), "C_indices": net.C.indices.astype(np.int64),
-            "C_data": net.C.data, "B_in": net.B_in, "B_back": net.B_back, "c0": net.c0,
-            "relaxation": net.a, "gain": net.g, "W": self.W_, "D": self.D_, "w0": self.w0_,
+            "C_indptr": net.C.indptr.astype(np.int64),
+            "C_indices": net.C.indices.astype(np.int64),
+            "C_data": net.C.data,
+            "B_in": net.B_in,
+            "B_back": net.B_back,
+            "c0": net.c0,
+            "relaxation": net.a,
+            "gain": net.g,
+            "W": self.W_,
+            "D": self.D_,
+            "w0": self.w0_,
             "y_rest": self.y_rest_,
         }
-        attrs = {"size": net.size, "mode": self.params.mode, "n_inputs": self.n_inputs_,
-                 "n_outputs": self.n_outputs_, "refinement": self.refinement_}
+        attrs = {
+            "size": net.size,
+            "mode": self.params.mode,
+            "n_inputs": self.n_inputs_,
+            "n_outputs": self.n_outputs_,
+            "refinement": self.refinement_,
+        }
         return arrays, attrs
 
     @classmethod
@@ -263,8 +329,9 @@ class EchoStateNetwork(Family):
         self = cls(**params)
         m = int(attrs["size"])
         C = sp.csr_matrix((arrays["C_data"], arrays["C_indices"], arrays["C_indptr"]), shape=(m, m))
-        self.network_ = Network(C, arrays["B_in"], arrays["B_back"].reshape(m, -1), arrays["c0"],
-                                arrays["relaxation"], arrays["gain"])
+        self.network_ = Network(
+            C, arrays["B_in"], arrays["B_back"].reshape(m, -1), arrays["c0"], arrays["relaxation"], arrays["gain"]
+        )
         self.W_, self.D_, self.w0_ = arrays["W"], arrays["D"], arrays["w0"]
         self.y_rest_ = arrays["y_rest"]
         self.n_inputs_, self.n_outputs_ = int(attrs["n_inputs"]), int(attrs["n_outputs"])
@@ -273,9 +340,14 @@ class EchoStateNetwork(Family):
 
     def summary(self) -> dict[str, Any]:
         net = self.network_
-        info = {"elements": net.size, "mode": self.params.mode, "connections": int(net.C.nnz),
-                "sigma(C)": round(largest_singular_value(net.C), 6), "rho(C)": round(spectral_radius(net.C), 6),
-                "readout": self.params.readout.solver}
+        info = {
+            "elements": net.size,
+            "mode": self.params.mode,
+            "connections": int(net.C.nnz),
+            "sigma(C)": round(largest_singular_value(net.C), 6),
+            "rho(C)": round(spectral_radius(net.C), 6),
+            "readout": self.params.readout.solver,
+        }
         info["readout terms"] = [int(len(s)) for s in self.selected_]
         if self.external:
             info["tune_in"] = self.params.tune_in

@@ -1,4 +1,5 @@
 """Random sparse networks of tanh elements and their algebraic properties (thesis 5.2.3, 5.3.1)."""
+
 from __future__ import annotations
 
 import warnings
@@ -35,12 +36,20 @@ class Network:
 
     def kernel_args(self) -> tuple:
         C = self.C
-        return (C.indptr.astype(np.int64), C.indices.astype(np.int64), C.data.astype(np.float64),
-                np.ascontiguousarray(self.B), self.c0, self.a, self.g)
+        return (
+            C.indptr.astype(np.int64),
+            C.indices.astype(np.int64),
+            C.data.astype(np.float64),
+            np.ascontiguousarray(self.B),
+            self.c0,
+            self.a,
+            self.g,
+        )
 
 
-def _sparse_normal(rng: np.random.Generator, shape: tuple[int, int], p: float, std: float,
-                   every_column: bool) -> np.ndarray:
+def _sparse_normal(
+    rng: np.random.Generator, shape: tuple[int, int], p: float, std: float, every_column: bool
+) -> np.ndarray:
     """Entries nonzero with probability p, values N(0, std^2); optionally at least one per column."""
     mask = rng.random(shape) < p
     values = std * rng.standard_normal(shape)
@@ -66,10 +75,16 @@ def build_network(p: EsnParams, n_inputs: int, n_outputs: int, rng: np.random.Ge
     if p.weights is not None:
         w = p.weights
         C = np.asarray(w.C, dtype=np.float64)
-        B_in = (_as_matrix(w.b, m, n_inputs, "b") if w.b is not None
-                else _sparse_normal(rng, (m, n_inputs), p.input_connectivity, p.input_scale, True))
-        B_back = (_as_matrix(w.b_back, m, n_back, "b_back") if (w.b_back is not None and n_back)
-                  else _sparse_normal(rng, (m, n_back), p.input_connectivity, p.feedback_scale, True))
+        B_in = (
+            _as_matrix(w.b, m, n_inputs, "b")
+            if w.b is not None
+            else _sparse_normal(rng, (m, n_inputs), p.input_connectivity, p.input_scale, True)
+        )
+        B_back = (
+            _as_matrix(w.b_back, m, n_back, "b_back")
+            if (w.b_back is not None and n_back)
+            else _sparse_normal(rng, (m, n_back), p.input_connectivity, p.feedback_scale, True)
+        )
         c0 = np.asarray(w.c0, dtype=np.float64) if w.c0 is not None else np.zeros(m)
         a = np.asarray(w.relaxation, dtype=np.float64) if w.relaxation is not None else None
     else:
@@ -91,8 +106,11 @@ def build_network(p: EsnParams, n_inputs: int, n_outputs: int, rng: np.random.Ge
         if s > 0:
             Cs = Cs * (p.scale.value / s)
     elif p.scale.by == "spectral":
-        warnings.warn("scaling C by its spectral radius does not guarantee a reliable network "
-                      "(thesis 5.3.1, eq. 5.28); scale.by: singular does", stacklevel=2)
+        warnings.warn(
+            "scaling C by its spectral radius does not guarantee a reliable network "
+            "(thesis 5.3.1, eq. 5.28); scale.by: singular does",
+            stacklevel=2,
+        )
         r = spectral_radius(Cs)
         if r > 0:
             Cs = Cs * (p.scale.value / r)

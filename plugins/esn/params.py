@@ -1,4 +1,5 @@
 """Parameters of the `esn` family, with defaults that work on a first try."""
+
 from __future__ import annotations
 
 from typing import Literal, Optional, Union
@@ -12,8 +13,10 @@ class Scale(FamilyParams):
     """Rescaling of the random connection matrix C."""
 
     by: Literal["singular", "spectral", "none"] = Field(
-        "singular", description="singular: largest singular value (guarantees reliability when < 1, thesis 5.3.1); "
-        "spectral: spectral radius (does not); none: keep C as given")
+        "singular",
+        description="singular: largest singular value (guarantees reliability when < 1, thesis 5.3.1); "
+        "spectral: spectral radius (does not); none: keep C as given",
+    )
     value: float = Field(0.95, gt=0, description="target largest singular value or spectral radius")
 
 
@@ -24,11 +27,12 @@ class Weights(FamilyParams):
     b: Optional[Union[list[float], list[list[float]]]] = Field(None, description="input weights, M or M x n_inputs")
     c0: Optional[list[float]] = Field(None, description="biases, M (default zeros)")
     b_back: Optional[Union[list[float], list[list[float]]]] = Field(
-        None, description="external mode: weights of the fed-back output, M or M x n_outputs")
+        None, description="external mode: weights of the fed-back output, M or M x n_outputs"
+    )
     relaxation: Optional[list[float]] = Field(None, description="relaxation parameter per element")
 
     @model_validator(mode="after")
-    def _shapes(self) -> "Weights":
+    def _shapes(self) -> Weights:
         m = len(self.C)
         if m == 0 or any(len(row) != m for row in self.C):
             raise ValueError(f"C must be square; got {m} rows of lengths {sorted({len(r) for r in self.C})}")
@@ -43,16 +47,31 @@ class Readout(FamilyParams):
     """Output weights: y_t = W x_t [+ D v_t] + w0 (eq. 5.19 / 5.32, with optional direct links)."""
 
     solver: Literal["fos", "lstsq", "ridge"] = Field(
-        "fos", description="fos: Fast Orthogonal Search keeps only useful states (thesis 5.3.3, robust to noise); "
-        "lstsq: all states by SVD least squares; ridge: all states, shrunk")
-    direct: bool = Field(True, description="also offer the network's drive (inputs, fed-back outputs) to the readout "
-                                           "(direct input-output links, thesis eq. 5.6)")
+        "fos",
+        description="fos: Fast Orthogonal Search keeps only useful states (thesis 5.3.3, robust to noise); "
+        "lstsq: all states by SVD least squares; ridge: all states, shrunk",
+    )
+    direct: bool = Field(
+        True,
+        description="also offer the network's drive (inputs, fed-back outputs) to the readout "
+        "(direct input-output links, thesis eq. 5.6)",
+    )
     max_terms: Optional[int] = Field(None, gt=0, description="fos: most states kept (default: no limit)")
-    patience: int = Field(50, gt=0, description="fos: stop after this many terms without a lower validation error "
-                                                "(1: at the first rise, thesis A.3)")
-    threshold: Optional[float] = Field(None, gt=0, description="fos: stop when a term reduces the error by less than this fraction")
-    rcond: Optional[float] = Field(None, gt=0, description="lstsq: relative singular-value cutoff (default eps * max(N, K))")
-    ridge: Union[float, Literal["auto"]] = Field("auto", description="ridge factor, or auto: chosen on the validation split")
+    patience: int = Field(
+        50,
+        gt=0,
+        description="fos: stop after this many terms without a lower validation error "
+        "(1: at the first rise, thesis A.3)",
+    )
+    threshold: Optional[float] = Field(
+        None, gt=0, description="fos: stop when a term reduces the error by less than this fraction"
+    )
+    rcond: Optional[float] = Field(
+        None, gt=0, description="lstsq: relative singular-value cutoff (default eps * max(N, K))"
+    )
+    ridge: Union[float, Literal["auto"]] = Field(
+        "auto", description="ridge factor, or auto: chosen on the validation split"
+    )
 
 
 class Refinement(FamilyParams):
@@ -61,17 +80,28 @@ class Refinement(FamilyParams):
     alpha: float = Field(0.2, gt=0, le=1, description="update parameter: w <- (1 - alpha) w + alpha w_free")
     max_iter: int = Field(60, ge=1, description="at most this many iterations")
     patience: int = Field(6, ge=1, description="stop after this many iterations without a lower validation error")
-    ramp: int = Field(10, ge=1, description="when the one-step model's free run diverges: iterations over which the "
-                                            "fed-back signal moves from measured to predicted output (error propagation, 6.3.2)")
+    ramp: int = Field(
+        10,
+        ge=1,
+        description="when the one-step model's free run diverges: iterations over which the "
+        "fed-back signal moves from measured to predicted output (error propagation, 6.3.2)",
+    )
 
 
 class EsnParams(FamilyParams):
     size: int = Field(200, gt=0, description="number of elements M")
     mode: Literal["internal", "external"] = Field(
-        "internal", description="internal: driven by the input only (eq. 5.41), reliable; external: the delayed output "
-        "is an extra input, teacher-forced in training and fed back in free run (eq. 5.42 / 5.43)")
-    connectivity: Optional[float] = Field(None, ge=0, le=1, description="probability of a nonzero entry in C "
-                                          "(default 2 / size: two connections per element, 0.01 for 200 elements)")
+        "internal",
+        description="internal: driven by the input only (eq. 5.41), reliable; external: the delayed output "
+        "is an extra input, teacher-forced in training and fed back in free run (eq. 5.42 / 5.43)",
+    )
+    connectivity: Optional[float] = Field(
+        None,
+        ge=0,
+        le=1,
+        description="probability of a nonzero entry in C "
+        "(default 2 / size: two connections per element, 0.01 for 200 elements)",
+    )
     input_connectivity: float = Field(0.1, gt=0, le=1, description="probability of a nonzero input weight")
     bias_connectivity: float = Field(0.8, ge=0, le=1, description="probability of a nonzero bias")
     input_scale: float = Field(1.0, gt=0, description="std of the nonzero input weights")
@@ -79,7 +109,8 @@ class EsnParams(FamilyParams):
     feedback_scale: float = Field(1.0, gt=0, description="external mode: std of the nonzero fed-back-output weights")
     scale: Optional[Scale] = Field(None, description="default: largest singular value 0.95; none for explicit weights")
     relaxation: Union[float, tuple[float, float]] = Field(
-        0.0, description="relaxation a of x_t = a x_{t-1} + g tanh(...): a number, or [low, high] drawn per element")
+        0.0, description="relaxation a of x_t = a x_{t-1} + g tanh(...): a number, or [low, high] drawn per element"
+    )
     relaxation_gain: bool = Field(False, description="g = 1 - |a| (eq. 6.21) instead of g = 1 (eq. 6.27)")
     tune_in: int = Field(100, ge=0, description="external mode: measured output samples fed back before running free")
     readout: Readout = Field(default_factory=Readout)
@@ -87,7 +118,7 @@ class EsnParams(FamilyParams):
     weights: Optional[Weights] = Field(None, description="explicit matrices instead of a random network")
 
     @model_validator(mode="after")
-    def _resolve(self) -> "EsnParams":
+    def _resolve(self) -> EsnParams:
         if self.weights is not None:
             m = len(self.weights.C)
             if "size" in self.model_fields_set and self.size != m:

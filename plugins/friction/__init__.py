@@ -3,6 +3,7 @@
 closed-loop ``friction-plant`` of 6.4 (mass, friction, noise, P-controller, random reference),
 which ``dynmodel control`` drives with a model's feed-forward. SI units throughout.
 """
+
 from .sources import Dahl, FrictionPlant, Gms, LuGre
 
 __all__ = ["Dahl", "LuGre", "Gms", "FrictionPlant"]

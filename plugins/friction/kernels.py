@@ -16,6 +16,7 @@ loaded element reaches nu_i g(v).
 Law parameters arrive packed (see ``laws.pack``): p = [sigma0, sigma1, sigma2, F_c, F_s, v_s,
 delta, v_d, C]. GMS modes: 0 sticking, +1 / -1 slipping in that direction.
 """
+
 from __future__ import annotations
 
 import math
@@ -48,8 +49,9 @@ def _sign(x: float) -> float:
 
 # ----------------------------------------------------------------------------- prescribed trajectory
 @njit(**_JIT)
-def gms_substep(F: np.ndarray, mode: np.ndarray, k: np.ndarray, nu: np.ndarray, dx: float, h: float,
-                g: float, C: float) -> None:
+def gms_substep(
+    F: np.ndarray, mode: np.ndarray, k: np.ndarray, nu: np.ndarray, dx: float, h: float, g: float, C: float
+) -> None:
     """Advance every GMS element over one substep of displacement dx (constant velocity dx / h)."""
     for i in range(F.shape[0]):
         if mode[i] != 0.0:
@@ -75,8 +77,18 @@ def gms_substep(F: np.ndarray, mode: np.ndarray, k: np.ndarray, nu: np.ndarray, 
 
 
 @njit(**_JIT)
-def law_force(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, x: np.ndarray, v: np.ndarray,
-              substeps: int, h: float, state: np.ndarray, mode: np.ndarray) -> np.ndarray:
+def law_force(
+    kind: int,
+    p: np.ndarray,
+    k: np.ndarray,
+    nu: np.ndarray,
+    x: np.ndarray,
+    v: np.ndarray,
+    substeps: int,
+    h: float,
+    state: np.ndarray,
+    mode: np.ndarray,
+) -> np.ndarray:
     """Friction force at the n samples of a prescribed trajectory.
 
     ``x``: positions at the (n - 1) * substeps + 1 substep boundaries (x[j * substeps] is sample j);
@@ -93,7 +105,7 @@ def law_force(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, x: np.nda
         elif kind == 1:
             g = stribeck(vj, p)
             zdot = vj - sigma0 * abs(vj) * state[0] / g
-            s1 = sigma1 * math.exp(-(vj / vd) ** 2) if vd > 0.0 else sigma1
+            s1 = sigma1 * math.exp(-((vj / vd) ** 2)) if vd > 0.0 else sigma1
             f = sigma0 * state[0] + s1 * zdot
         else:
             f = 0.0
@@ -121,8 +133,16 @@ def law_force(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, x: np.nda
 
 # ----------------------------------------------------------------------------- plant
 @njit(inline="always", **_JIT)
-def _rates(kind: int, p: np.ndarray, k: np.ndarray, inv_nu: np.ndarray, mode: np.ndarray, V: float,
-           S: np.ndarray, dS: np.ndarray) -> float:
+def _rates(
+    kind: int,
+    p: np.ndarray,
+    k: np.ndarray,
+    inv_nu: np.ndarray,
+    mode: np.ndarray,
+    V: float,
+    S: np.ndarray,
+    dS: np.ndarray,
+) -> float:
     """dS/dt of the law states at velocity V (into dS); returns the law's force (without sigma2 v).
     ``inv_nu`` = 1 / nu_i."""
     sigma0, sigma1, fc, vd, C = p[0], p[1], p[3], p[7], p[8]
@@ -133,7 +153,7 @@ def _rates(kind: int, p: np.ndarray, k: np.ndarray, inv_nu: np.ndarray, mode: np
         g = stribeck(V, p)
         zdot = V - sigma0 * abs(V) * S[0] / g
         dS[0] = zdot
-        s1 = sigma1 * math.exp(-(V / vd) ** 2) if vd > 0.0 else sigma1
+        s1 = sigma1 * math.exp(-((V / vd) ** 2)) if vd > 0.0 else sigma1
         return sigma0 * S[0] + s1 * zdot
     cg = C / stribeck(V, p)
     f = 0.0
@@ -163,10 +183,30 @@ def _switch_modes(S: np.ndarray, mode: np.ndarray, nu: np.ndarray, V: float, p: 
 
 
 @njit(**_JIT)
-def plant_run(kind: int, p: np.ndarray, k: np.ndarray, nu: np.ndarray, mass: float, kp: float, kd: float,
-              ref: np.ndarray, dref: np.ndarray, ff: np.ndarray, hold: int, noise: np.ndarray,
-              substeps: int, h: float, xv: np.ndarray, S: np.ndarray, mode: np.ndarray,
-              start: int, stop: int, position: np.ndarray, force: np.ndarray, friction: np.ndarray) -> int:
+def plant_run(
+    kind: int,
+    p: np.ndarray,
+    k: np.ndarray,
+    nu: np.ndarray,
+    mass: float,
+    kp: float,
+    kd: float,
+    ref: np.ndarray,
+    dref: np.ndarray,
+    ff: np.ndarray,
+    hold: int,
+    noise: np.ndarray,
+    substeps: int,
+    h: float,
+    xv: np.ndarray,
+    S: np.ndarray,
+    mode: np.ndarray,
+    start: int,
+    stop: int,
+    position: np.ndarray,
+    force: np.ndarray,
+    friction: np.ndarray,
+) -> int:
     """Closed loop m P'' = kp (P_r - P) + kd (P_r' - V) + F_ff - F_law - sigma2 V - r over samples
     [start, stop), recording at each sample before stepping on; returns the first non-finite sample or -1.
 

@@ -18,6 +18,7 @@ v > 0. An element sticks when the velocity goes through zero and slips when |F_i
 nu_i g(v) while it is loaded in the direction of motion (eq. 6.15); while it is unloaded its force
 is kept within the (possibly shrinking) limit nu_i g(v) without a switch.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -38,8 +39,10 @@ class _LawBase(BaseModel):
     @model_validator(mode="after")
     def _viscous(self):
         if self.viscous < 0:
-            raise ValueError(f"viscous = {self.viscous:g} is negative: a negative damping feeds energy into the "
-                             "motion; use a value >= 0")
+            raise ValueError(
+                f"viscous = {self.viscous:g} is negative: a negative damping feeds energy into the "
+                "motion; use a value >= 0"
+            )
         return self
 
 
@@ -47,8 +50,9 @@ class _Stribeck(_LawBase):
     coulomb: float = Field(20.0, description="Coulomb force F_c (N)")
     static: float = Field(22.0, description="break-away (static) force F_s (N)")
     stribeck_velocity: float = Field(0.002, description="Stribeck velocity v_s (m/s)")
-    stribeck_exponent: float = Field(2.0, description="exponent delta of g(v) = F_c + (F_s - F_c) exp(-|v/v_s|^delta) "
-                                                       "(eq. 6.5; 2: eq. 6.11)")
+    stribeck_exponent: float = Field(
+        2.0, description="exponent delta of g(v) = F_c + (F_s - F_c) exp(-|v/v_s|^delta) (eq. 6.5; 2: eq. 6.11)"
+    )
 
     @model_validator(mode="after")
     def _stribeck(self):
@@ -60,7 +64,9 @@ class _Stribeck(_LawBase):
     def g(self, v: np.ndarray | float) -> np.ndarray:
         """Stribeck curve g(v) (eq. 6.11), the steady-state dry friction at velocity v."""
         v = np.asarray(v, dtype=np.float64)
-        return self.coulomb + (self.static - self.coulomb) * np.exp(-np.abs(v / self.stribeck_velocity) ** self.stribeck_exponent)
+        return self.coulomb + (self.static - self.coulomb) * np.exp(
+            -(np.abs(v / self.stribeck_velocity) ** self.stribeck_exponent)
+        )
 
 
 class DahlFields(_LawBase):
@@ -86,7 +92,8 @@ class LuGreFields(_Stribeck):
     sigma0: float = Field(1e7, description="bristle stiffness sigma0 (N/m)")
     sigma1: float = Field(2e3, description="micro-viscous damping sigma1 (N s/m)")
     damping: Literal["standard", "olsson"] = Field(
-        "standard", description="standard: constant sigma1 (eq. 6.10); olsson: sigma1 exp(-(v/v_d)^2) (eq. 6.12)")
+        "standard", description="standard: constant sigma1 (eq. 6.10); olsson: sigma1 exp(-(v/v_d)^2) (eq. 6.12)"
+    )
     damping_velocity: float = Field(0.01, description="v_d of Olsson's damping (m/s)")
 
     @model_validator(mode="after")
@@ -94,8 +101,10 @@ class LuGreFields(_Stribeck):
         if not self.sigma0 > 0:
             raise ValueError(f"sigma0 = {self.sigma0:g} must be positive")
         if self.sigma1 < 0:
-            raise ValueError(f"sigma1 = {self.sigma1:g} is negative: a negative damping feeds energy into the "
-                             "contact; use a value >= 0")
+            raise ValueError(
+                f"sigma1 = {self.sigma1:g} is negative: a negative damping feeds energy into the "
+                "contact; use a value >= 0"
+            )
         if not self.damping_velocity > 0:
             raise ValueError(f"damping_velocity = {self.damping_velocity:g} must be positive")
         return self
@@ -106,21 +115,28 @@ class GmsFields(_Stribeck):
 
     elements: int = Field(10, ge=1, le=1000, description="number of elements M")
     stiffness: Optional[list[float]] = Field(
-        None, description="k_i (N/m), one per element; default: element i breaks away after a displacement "
-        "nu_i F_s / k_i spread geometrically over `presliding`")
+        None,
+        description="k_i (N/m), one per element; default: element i breaks away after a displacement "
+        "nu_i F_s / k_i spread geometrically over `presliding`",
+    )
     fractions: Optional[list[float]] = Field(
-        None, description="nu_i, one per element, summing to 1 (eq. 6.14); default: 1 / M each")
+        None, description="nu_i, one per element, summing to 1 (eq. 6.14); default: 1 / M each"
+    )
     presliding: tuple[float, float] = Field(
-        (2e-7, 2e-5), description="default stiffness: break-away displacements of the first and last element (m)")
-    attraction: float = Field(5e3, description="C (N/s): a slipping element approaches sign(v) nu_i g(v) at the rate "
-                                               "C / (nu_i g(v))")
+        (2e-7, 2e-5), description="default stiffness: break-away displacements of the first and last element (m)"
+    )
+    attraction: float = Field(
+        5e3, description="C (N/s): a slipping element approaches sign(v) nu_i g(v) at the rate C / (nu_i g(v))"
+    )
 
     @model_validator(mode="after")
     def _gms(self):
         m = self.elements
         if self.fractions is not None:
             if len(self.fractions) != m:
-                raise ValueError(f"fractions has {len(self.fractions)} values but elements is {m}; give one nu_i per element")
+                raise ValueError(
+                    f"fractions has {len(self.fractions)} values but elements is {m}; give one nu_i per element"
+                )
             if any(not f > 0 for f in self.fractions):
                 raise ValueError("every fraction nu_i must be positive")
             total = float(np.sum(self.fractions))
@@ -128,7 +144,9 @@ class GmsFields(_Stribeck):
                 raise ValueError(f"the fractions nu_i add up to {total:.6g}; they must sum to 1 (eq. 6.14)")
         if self.stiffness is not None:
             if len(self.stiffness) != m:
-                raise ValueError(f"stiffness has {len(self.stiffness)} values but elements is {m}; give one k_i per element")
+                raise ValueError(
+                    f"stiffness has {len(self.stiffness)} values but elements is {m}; give one k_i per element"
+                )
             if any(not k > 0 for k in self.stiffness):
                 raise ValueError("every stiffness k_i must be positive (N/m)")
         lo, hi = self.presliding
@@ -139,7 +157,9 @@ class GmsFields(_Stribeck):
         return self
 
     def nu(self) -> np.ndarray:
-        return np.full(self.elements, 1.0 / self.elements) if self.fractions is None else np.asarray(self.fractions, float)
+        return (
+            np.full(self.elements, 1.0 / self.elements) if self.fractions is None else np.asarray(self.fractions, float)
+        )
 
     def k(self) -> np.ndarray:
         if self.stiffness is not None:
@@ -162,6 +182,8 @@ class GmsLaw(GmsFields):
 
 
 AnyLaw = Union[DahlFields, LuGreFields, GmsFields]
+
+
 def _law_tag(value) -> str | None:
     if isinstance(value, dict):
         return value.get("type", "gms")
@@ -169,9 +191,10 @@ def _law_tag(value) -> str | None:
 
 
 #: a law chosen by ``type`` (default gms)
-Law = Annotated[Union[Annotated[DahlLaw, Tag("dahl")], Annotated[LuGreLaw, Tag("lugre")], Annotated[GmsLaw, Tag("gms")]],
-                Discriminator(_law_tag, custom_error_type="law_type",
-                              custom_error_message="type must be dahl, lugre or gms")]
+Law = Annotated[
+    Union[Annotated[DahlLaw, Tag("dahl")], Annotated[LuGreLaw, Tag("lugre")], Annotated[GmsLaw, Tag("gms")]],
+    Discriminator(_law_tag, custom_error_type="law_type", custom_error_message="type must be dahl, lugre or gms"),
+]
 
 
 @dataclass(frozen=True)
@@ -199,11 +222,33 @@ def pack(law: AnyLaw) -> PackedLaw:
         return PackedLaw(DAHL, p, one, one)
     if isinstance(law, LuGreFields):
         vd = law.damping_velocity if law.damping == "olsson" else 0.0
-        p = np.array([law.sigma0, law.sigma1, law.viscous, law.coulomb, law.static, law.stribeck_velocity,
-                      law.stribeck_exponent, vd, 0.0])
+        p = np.array(
+            [
+                law.sigma0,
+                law.sigma1,
+                law.viscous,
+                law.coulomb,
+                law.static,
+                law.stribeck_velocity,
+                law.stribeck_exponent,
+                vd,
+                0.0,
+            ]
+        )
         return PackedLaw(LUGRE, p, one, one)
-    p = np.array([0.0, 0.0, law.viscous, law.coulomb, law.static, law.stribeck_velocity, law.stribeck_exponent,
-                  0.0, law.attraction])
+    p = np.array(
+        [
+            0.0,
+            0.0,
+            law.viscous,
+            law.coulomb,
+            law.static,
+            law.stribeck_velocity,
+            law.stribeck_exponent,
+            0.0,
+            law.attraction,
+        ]
+    )
     return PackedLaw(GMS, p, np.ascontiguousarray(law.k()), np.ascontiguousarray(law.nu()))
 
 

@@ -9,6 +9,7 @@ a feed-forward sequence F_ff(t_k) is held linearly between samples (the referenc
 feed-forward, is known ahead) or constant (``hold: 0``, a plain digital output). Integration: RK4
 with ``substeps`` steps per sample (see ``kernels.plant_run``).
 """
+
 from __future__ import annotations
 
 import copy
@@ -41,9 +42,12 @@ class PlantParams(GeneratorParams):
     mass: float = Field(5.0, gt=0, description="moving mass m (kg)")
     kp: float = Field(4000.0, ge=0, description="proportional gain K_p of the position controller (N/m)")
     kd: float = Field(0.0, ge=0, description="derivative gain (N s/m); 0: the P-controller of 6.4")
-    law: Law = Field(default_factory=_default_law, description="friction law: {type: gms | lugre | dahl, ...}; "
-                     "keys of a GMS law not given take the plant's defaults (10 elements, viscous 0.2, "
-                     "pre-sliding 0.1 - 5 mm)")
+    law: Law = Field(
+        default_factory=_default_law,
+        description="friction law: {type: gms | lugre | dahl, ...}; "
+        "keys of a GMS law not given take the plant's defaults (10 elements, viscous 0.2, "
+        "pre-sliding 0.1 - 5 mm)",
+    )
     noise: float = Field(0.05, ge=0, description="internal noise r ~ U[-noise, noise] (N), a new value every sample")
     reference: TrajectoryParams = Field(default_factory=_default_reference, description="reference trajectory P_r")
     sampling_time: float = Field(0.001, gt=0, description="seconds between samples")
@@ -61,19 +65,23 @@ class PlantParams(GeneratorParams):
     def _resolution(self):
         h = self.sampling_time / self.substeps
         law = self.law
-        stiff = self.kp + (float(np.sum(law.k())) if law.type == "gms" else
-                           (law.sigma0 if law.type == "lugre" else law.sigma))
+        stiff = self.kp + (
+            float(np.sum(law.k())) if law.type == "gms" else (law.sigma0 if law.type == "lugre" else law.sigma)
+        )
         rates = {"the stick oscillation sqrt((kp + stiffness) / m)": math.sqrt(stiff / self.mass)}
         if law.type == "gms":
-            rates["the slip relaxation C / (nu_i F_min)"] = law.attraction / (float(np.min(law.nu())) *
-                                                                           min(law.coulomb, law.static))
+            rates["the slip relaxation C / (nu_i F_min)"] = law.attraction / (
+                float(np.min(law.nu())) * min(law.coulomb, law.static)
+            )
         if law.type == "lugre":
             rates["the damping (sigma1 + kd) / m"] = (law.sigma1 + self.kd) / self.mass
         what, rate = max(rates.items(), key=lambda kv: kv[1])
         if rate * h > 1.0:
             need = math.ceil(rate * self.sampling_time)
-            raise ValueError(f"substeps = {self.substeps} is too coarse for {what} = {rate:.4g} 1/s (RK4 step "
-                             f"{h:.3g} s); use substeps >= {need}")
+            raise ValueError(
+                f"substeps = {self.substeps} is too coarse for {what} = {rate:.4g} 1/s (RK4 step "
+                f"{h:.3g} s); use substeps >= {need}"
+            )
         return self
 
 
@@ -85,7 +93,7 @@ class PlantState:
     S: np.ndarray
     mode: np.ndarray
 
-    def copy(self) -> "PlantState":
+    def copy(self) -> PlantState:
         return PlantState(self.xv.copy(), self.S.copy(), self.mode.copy())
 
 
@@ -114,18 +122,51 @@ class Plant:
         m = self.law.n_states
         return PlantState(np.array([ref0, dref0]), np.zeros(m), np.zeros(m))
 
-    def run(self, ref: np.ndarray, dref: np.ndarray, feedforward: np.ndarray, noise: np.ndarray,
-            state: PlantState, start: int, stop: int, hold: int = 1) -> Record:
+    def run(
+        self,
+        ref: np.ndarray,
+        dref: np.ndarray,
+        feedforward: np.ndarray,
+        noise: np.ndarray,
+        state: PlantState,
+        start: int,
+        stop: int,
+        hold: int = 1,
+    ) -> Record:
         """Samples [start, stop) from ``state`` (updated in place to t_stop)."""
         n = noise.shape[0]
         pos, frc, fri = np.empty(n), np.empty(n), np.empty(n)
         p = self.params
-        bad = kernels.plant_run(self.law.kind, self.law.p, self.law.k, self.law.nu, p.mass, p.kp, p.kd, ref, dref,
-                                feedforward, hold, noise, self.substeps, self.h, state.xv, state.S, state.mode,
-                                start, stop, pos, frc, fri)
+        bad = kernels.plant_run(
+            self.law.kind,
+            self.law.p,
+            self.law.k,
+            self.law.nu,
+            p.mass,
+            p.kp,
+            p.kd,
+            ref,
+            dref,
+            feedforward,
+            hold,
+            noise,
+            self.substeps,
+            self.h,
+            state.xv,
+            state.S,
+            state.mode,
+            start,
+            stop,
+            pos,
+            frc,
+            fri,
+        )
         if bad >= 0:
-            raise DataError(f"the friction plant's integration diverged at sample {bad} (t = {bad * p.sampling_time:.6g} s)",
-                            "friction-plant", "increase substeps or check the law's parameters")
+            raise DataError(
+                f"the friction plant's integration diverged at sample {bad} (t = {bad * p.sampling_time:.6g} s)",
+                "friction-plant",
+                "increase substeps or check the law's parameters",
+            )
         return Record(pos[start:stop], frc[start:stop], fri[start:stop])
 
     def noise(self, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -149,7 +190,7 @@ def simulate(params: PlantParams, n: int, rng: np.random.Generator) -> tuple[np.
     noise = plant.noise(n, rng)
     state = plant.initial_state(ref[0], dref[0])
     rec = plant.run(ref, dref, np.zeros(n + 1), noise, state, 0, n)
-    return ref[::2 * params.substeps][:n].copy(), rec
+    return ref[:: 2 * params.substeps][:n].copy(), rec
 
 
 class TrackingTask:
@@ -159,12 +200,12 @@ class TrackingTask:
         self.plant, self.n = plant, n
         self.trajectory = Trajectory(plant.params.reference, rng)
         self.ref_grid, self.dref_grid = plant.reference_grid(self.trajectory, n)
-        self.reference = self.ref_grid[::2 * plant.substeps][:n].copy()
+        self.reference = self.ref_grid[:: 2 * plant.substeps][:n].copy()
 
     def perfect_feedforward(self) -> np.ndarray:
         return self.plant.perfect_feedforward(self.trajectory, self.n)
 
-    def start(self, switch: int, rng: np.random.Generator, hold: int = 1) -> "TrackingRun":
+    def start(self, switch: int, rng: np.random.Generator, hold: int = 1) -> TrackingRun:
         return TrackingRun(self, switch, self.plant.noise(self.n, rng), hold)
 
 
@@ -183,7 +224,7 @@ class TrackingRun:
         active from the switch on; the same noise, from a copy of the state at the switch."""
         task = self.task
         ff = np.zeros(task.n + 1)
-        ff[self.switch:task.n] = feedforward[self.switch:]
+        ff[self.switch : task.n] = feedforward[self.switch :]
         ff[task.n] = feedforward[-1]
         state = copy.deepcopy(self._state)
         rec = task.plant.run(task.ref_grid, task.dref_grid, ff, self.noise, state, self.switch, task.n, self.hold)

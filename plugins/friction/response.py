@@ -1,4 +1,5 @@
 """Friction force along a prescribed position trajectory (the cross-prediction task of 6.2 / 6.3)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -17,8 +18,9 @@ class LawState:
         self.mode = np.zeros(self.packed.n_states)
 
 
-def friction_force(law: AnyLaw, x: np.ndarray, v: np.ndarray, substep: float, substeps: int,
-                   state: LawState | None = None) -> np.ndarray:
+def friction_force(
+    law: AnyLaw, x: np.ndarray, v: np.ndarray, substep: float, substeps: int, state: LawState | None = None
+) -> np.ndarray:
     """Force at the samples of a trajectory given at every substep boundary.
 
     ``x``: (n - 1) * substeps + 1 positions, sample j at x[j * substeps], linear within a substep;
@@ -35,8 +37,9 @@ def friction_force(law: AnyLaw, x: np.ndarray, v: np.ndarray, substep: float, su
     return kernels.law_force(pk.kind, pk.p, pk.k, pk.nu, x, v, int(substeps), float(substep), st.state, st.mode)
 
 
-def trajectory_force(law: AnyLaw, trajectory: Trajectory, n: int, sampling_time: float,
-                     substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def trajectory_force(
+    law: AnyLaw, trajectory: Trajectory, n: int, sampling_time: float, substeps: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(position, velocity, force) at n samples of ``trajectory``, from the virgin state."""
     h = sampling_time / substeps
     x_fine, v_fine, _ = trajectory.grid(0.0, h, (n - 1) * substeps + 1)

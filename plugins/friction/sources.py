@@ -1,5 +1,6 @@
 """Data generators (entry-point group ``dynmodel.sources``): the friction laws driven along a
 trajectory (position -> force, 6.2 / 6.3) and the closed-loop friction plant (6.4)."""
+
 from __future__ import annotations
 
 from typing import ClassVar, Literal
@@ -24,9 +25,12 @@ def _presliding() -> TrajectoryParams:
 class _DrivenFields(GeneratorParams):
     trajectory: TrajectoryParams = Field(default_factory=_presliding, description="the prescribed position (m)")
     sampling_time: float = Field(0.004, gt=0, description="seconds between samples (6.2: 250 Hz)")
-    substeps: int = Field(10, ge=1, le=10000, description="integration substeps per sample (position linear within one)")
-    position_unit: Literal["m", "mm", "um"] = Field("m", description="unit of the recorded position column "
-                                                                     "(parameters stay in SI units)")
+    substeps: int = Field(
+        10, ge=1, le=10000, description="integration substeps per sample (position linear within one)"
+    )
+    position_unit: Literal["m", "mm", "um"] = Field(
+        "m", description="unit of the recorded position column (parameters stay in SI units)"
+    )
 
 
 class DahlData(DahlFields, _DrivenFields):
@@ -81,10 +85,13 @@ class FrictionControlPlant:
         self.plant = Plant(params)
         self.sampling_time = params.sampling_time
         law = params.law
-        self.description = (f"mass {params.mass:g} kg, P-controller kp = {params.kp:g} N/m"
-                            + (f", kd = {params.kd:g} N s/m" if params.kd else "")
-                            + f", {law.type} friction" + (f" ({law.elements} elements)" if law.type == "gms" else "")
-                            + f", viscous {law.viscous:g} N s/m, noise U[-{params.noise:g}, {params.noise:g}] N")
+        self.description = (
+            f"mass {params.mass:g} kg, P-controller kp = {params.kp:g} N/m"
+            + (f", kd = {params.kd:g} N s/m" if params.kd else "")
+            + f", {law.type} friction"
+            + (f" ({law.elements} elements)" if law.type == "gms" else "")
+            + f", viscous {law.viscous:g} N s/m, noise U[-{params.noise:g}, {params.noise:g}] N"
+        )
 
     def tracking_task(self, n: int, rng: np.random.Generator) -> TrackingTask:
         return TrackingTask(self.plant, n, rng)
@@ -92,8 +99,10 @@ class FrictionControlPlant:
 
 class FrictionPlant(Generator):
     name = "friction-plant"
-    description = ("mass + friction law + noise under P-control following a random reference (6.4): "
-                   "inputs position, reference (m); outputs force (control), friction (N)")
+    description = (
+        "mass + friction law + noise under P-control following a random reference (6.4): "
+        "inputs position, reference (m); outputs force (control), friction (N)"
+    )
     Params = PlantParams
     input_names = ("position", "reference")
     output_names = ("force", "friction")

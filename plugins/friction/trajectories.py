@@ -14,6 +14,7 @@ hertz gives gross sliding with sticking at the reversals (6.3). ``fade_in`` star
 multisine signals from rest at ``offset`` (x = offset + w(t) s(t), w a quintic ramp from 0 to 1 with
 continuous first and second derivatives), so a plant or a virgin friction state starts consistently.
 """
+
 from __future__ import annotations
 
 import math
@@ -46,8 +47,9 @@ class TrajectoryParams(BaseModel):
             raise ValueError(f"band = [{lo:g}, {hi:g}] must satisfy 0 < low <= high (Hz)")
         if self.kind == "reversals" and (self.points is None or len(self.points) < 2):
             raise ValueError("kind reversals needs points: at least two positions (m), e.g. [0, 2e-6, -2e-6, 1e-6]")
-        if self.kind == "multisine" and not any(lo <= m / self.period <= hi
-                                                 for m in range(int(lo * self.period), int(hi * self.period) + 2)):
+        if self.kind == "multisine" and not any(
+            lo <= m / self.period <= hi for m in range(int(lo * self.period), int(hi * self.period) + 2)
+        ):
             raise ValueError(f"no harmonic of 1 / period = {1 / self.period:g} Hz lies in band [{lo:g}, {hi:g}]")
         return self
 
@@ -115,9 +117,9 @@ class Trajectory:
             if ramp.any():
                 T = p.fade_in
                 s = t[ramp] / T  # quintic smoothstep: w, w', w'' continuous at both ends
-                w = s ** 3 * (10 - 15 * s + 6 * s * s)
+                w = s**3 * (10 - 15 * s + 6 * s * s)
                 w1 = 30 * s * s * (1 - s) ** 2 / T
-                w2 = 60 * s * (1 - s) * (1 - 2 * s) / T ** 2
+                w2 = 60 * s * (1 - s) * (1 - 2 * s) / T**2
                 xs, vs, as_ = x[ramp], v[ramp], a[ramp]
                 x[ramp], v[ramp], a[ramp] = w * xs, w1 * xs + w * vs, w2 * xs + 2 * w1 * vs + w * as_
         return x + p.offset, v, a
@@ -134,5 +136,5 @@ class Trajectory:
             s = (t[sel] - self.starts[j]) / dur
             x[sel] = self.points[j] + d * (1 - np.cos(np.pi * s)) / 2
             v[sel] = d * np.pi * np.sin(np.pi * s) / (2 * dur)
-            a[sel] = d * np.pi ** 2 * np.cos(np.pi * s) / (2 * dur ** 2)
+            a[sel] = d * np.pi**2 * np.cos(np.pi * s) / (2 * dur**2)
         return x + self.params.offset, v, a

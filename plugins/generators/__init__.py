@@ -7,7 +7,8 @@
 * ``rossler-cross``   Rossler system, input z1(t), output z2(t + T)                 (eq. 4.54)
 * ``rossler-lorenz``  Rossler drives Lorenz through u = x1 + x2 + x3, output z1      (eq. 5.53 / 5.54)
 """
-from .maps import DrivenLogistic, LinearSystem, NarxSystem
+
 from .flows import RosslerCross, RosslerLorenz
+from .maps import DrivenLogistic, LinearSystem, NarxSystem
 
 __all__ = ["LinearSystem", "DrivenLogistic", "NarxSystem", "RosslerCross", "RosslerLorenz"]

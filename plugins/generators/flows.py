@@ -1,4 +1,5 @@
 """Continuous-time chaotic systems of thesis chapters 4 and 5, integrated with fixed-step RK4."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -19,8 +20,7 @@ def _rossler(s: np.ndarray, a: float, b: float, c: float) -> np.ndarray:
 
 
 @njit(cache=True)
-def _rossler_lorenz(s: np.ndarray, a: float, b: float, c: float,
-                    sigma: float, r: float, beta: float) -> np.ndarray:
+def _rossler_lorenz(s: np.ndarray, a: float, b: float, c: float, sigma: float, r: float, beta: float) -> np.ndarray:
     """Eq. 5.53 drives eq. 5.54 through u = x1 + x2 + x3."""
     out = np.empty(6)
     out[:3] = _rossler(s[:3], a, b, c)
@@ -75,7 +75,9 @@ class _FlowParams(GeneratorParams):
     def _multiple(self):
         k = self.sampling_time / self.integration_step
         if abs(k - round(k)) > 1e-9 * max(1.0, k) or round(k) < 1:
-            raise ValueError(f"sampling_time {self.sampling_time} is not a whole multiple of integration_step {self.integration_step}")
+            raise ValueError(
+                f"sampling_time {self.sampling_time} is not a whole multiple of integration_step {self.integration_step}"
+            )
         return self
 
     @property
@@ -100,9 +102,17 @@ class RosslerCross(Generator):
     def generate(cls, params: RosslerCrossParams, n: int, rng: np.random.Generator):
         lead = int(round(params.horizon / params.sampling_time))
         burn = int(round(params.burn_in / params.sampling_time))
-        z = _integrate_rossler(_initial_rossler(rng), n + lead, params.substeps, params.integration_step,
-                               burn, params.a, params.b, params.c)
-        return z[:n, 0:1].copy(), z[lead:lead + n, 1:2].copy()
+        z = _integrate_rossler(
+            _initial_rossler(rng),
+            n + lead,
+            params.substeps,
+            params.integration_step,
+            burn,
+            params.a,
+            params.b,
+            params.c,
+        )
+        return z[:n, 0:1].copy(), z[lead : lead + n, 1:2].copy()
 
 
 class RosslerLorenzParams(_FlowParams):
@@ -121,7 +131,18 @@ class RosslerLorenz(Generator):
     def generate(cls, params: RosslerLorenzParams, n: int, rng: np.random.Generator):
         burn = int(round(params.burn_in / params.sampling_time))
         s0 = np.concatenate([_initial_rossler(rng), rng.standard_normal(3)])
-        s = _integrate_rossler_lorenz(s0, n, params.substeps, params.integration_step, burn,
-                                      params.a, params.b, params.c, params.sigma, params.r, params.beta)
+        s = _integrate_rossler_lorenz(
+            s0,
+            n,
+            params.substeps,
+            params.integration_step,
+            burn,
+            params.a,
+            params.b,
+            params.c,
+            params.sigma,
+            params.r,
+            params.beta,
+        )
         u = s[:, 0] + s[:, 1] + s[:, 2]
         return u[:, None], s[:, 3:4].copy()

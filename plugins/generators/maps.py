@@ -1,4 +1,5 @@
 """Discrete-time driven maps of thesis chapter 3."""
+
 from __future__ import annotations
 
 import numpy as np

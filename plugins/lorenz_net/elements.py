@@ -9,6 +9,7 @@ network is a cascade of reliable systems). Over each sampling interval the drive
 value at the end of the interval (zero-order hold of the input and of the upstream outputs, which
 are computed first), and the element is integrated by fixed-step RK4 with ``substeps`` steps.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -66,15 +67,33 @@ def step_elements(params, C, B, X, U, dt, substeps, out):
             for j in range(i):
                 if C[i, j] != 0.0:
                     v += C[i, j] * out[rep, j, 1] / params[j, 1]
-            x1, x2, x3 = _interval(X[rep, i, 0], X[rep, i, 1], X[rep, i, 2], v, params[i, 0], params[i, 1],
-                                   params[i, 2], params[i, 3], h, substeps)
+            x1, x2, x3 = _interval(
+                X[rep, i, 0],
+                X[rep, i, 1],
+                X[rep, i, 2],
+                v,
+                params[i, 0],
+                params[i, 1],
+                params[i, 2],
+                params[i, 3],
+                h,
+                substeps,
+            )
             out[rep, i, 0] = x1
             out[rep, i, 1] = x2
             out[rep, i, 2] = x3
 
 
-def simulate_network(params: np.ndarray, C: np.ndarray, B: np.ndarray, U: np.ndarray, dt: float, substeps: int,
-                     out: np.ndarray | None = None, only: list[int] | None = None) -> tuple[np.ndarray, int]:
+def simulate_network(
+    params: np.ndarray,
+    C: np.ndarray,
+    B: np.ndarray,
+    U: np.ndarray,
+    dt: float,
+    substeps: int,
+    out: np.ndarray | None = None,
+    only: list[int] | None = None,
+) -> tuple[np.ndarray, int]:
     """States (n, M, 3) of the network driven by U (n, n_inputs) from rest.
 
     ``only``: recompute just these elements (in increasing order) in a given ``out``; the others
@@ -87,12 +106,21 @@ def simulate_network(params: np.ndarray, C: np.ndarray, B: np.ndarray, U: np.nda
         only = None
     first_bad = -1
     buf = np.empty((n, 3))
-    for i in (range(M) if only is None else only):
+    for i in range(M) if only is None else only:
         v = U @ B[i]
         for j in np.flatnonzero(C[i, :i]):
             v = v + C[i, j] * out[:, j, 1] / params[j, 1]
-        bad = integrate_element(params[i, 0], params[i, 1], params[i, 2], params[i, 3], np.ascontiguousarray(v),
-                                dt, substeps, np.zeros(3), buf)
+        bad = integrate_element(
+            params[i, 0],
+            params[i, 1],
+            params[i, 2],
+            params[i, 3],
+            np.ascontiguousarray(v),
+            dt,
+            substeps,
+            np.zeros(3),
+            buf,
+        )
         out[:, i, :] = buf
         if bad >= 0:
             first_bad = bad if first_bad < 0 else min(first_bad, bad)

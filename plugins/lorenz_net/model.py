@@ -6,6 +6,7 @@ of coupling outputs x2 / r of earlier elements (eq. 4.58 / 4.59). The output is 
 combination of all 3M states plus an offset (eq. 4.55). Element parameters (and, feed-forward,
 the couplings) are adapted by simulated annealing on the validation NMSE.
 """
+
 from __future__ import annotations
 
 import threading
@@ -38,16 +39,33 @@ class LorenzNet(Family):
         evaluator = Evaluator(data, p, self.dt_)
         state = initial_state(p, data.n_inputs, rng)
         score = evaluator.score(state)
-        result = anneal(state, score, evaluator.score, make_moves(p), Schedule(p.steps, p.t0, p.t_end), rng,
-                        on_step=report, stop=lambda step, best: halt.is_set())
-        info = {"validation_nmse": 100 * result.best_score, "initial_validation_nmse": 100 * score,
-                "accepted": result.accepted, "steps": len(result.history),
-                "element_integrations": evaluator.element_integrations,
-                "interrupted": result.interrupted or halt.is_set()}
+        result = anneal(
+            state,
+            score,
+            evaluator.score,
+            make_moves(p),
+            Schedule(p.steps, p.t0, p.t_end),
+            rng,
+            on_step=report,
+            stop=lambda step, best: halt.is_set(),
+        )
+        info = {
+            "validation_nmse": 100 * result.best_score,
+            "initial_validation_nmse": 100 * score,
+            "accepted": result.accepted,
+            "steps": len(result.history),
+            "element_integrations": evaluator.element_integrations,
+            "interrupted": result.interrupted or halt.is_set(),
+        }
         return result.best, result.best_score, info
 
-    def fit(self, data: TrainingData, cost: str = "mse1", rng: np.random.Generator | None = None,
-            progress: Progress = no_progress) -> "LorenzNet":
+    def fit(
+        self,
+        data: TrainingData,
+        cost: str = "mse1",
+        rng: np.random.Generator | None = None,
+        progress: Progress = no_progress,
+    ) -> LorenzNet:
         rng = rng if rng is not None else np.random.default_rng(0)
         p = self.params
         self.n_inputs_, self.n_outputs_ = data.n_inputs, data.n_outputs
@@ -58,17 +76,24 @@ class LorenzNet(Family):
             def report(step, temperature, current, best, info):
                 if step % 10 == 0 or step == p.steps - 1:
                     with lock:
-                        progress("anneal", (step + 1) / max(p.steps, 1),
-                                 f"run {k + 1}/{p.restarts}, T = {temperature:.3g}, best validation NMSE {100 * best:.4g} %")
+                        progress(
+                            "anneal",
+                            (step + 1) / max(p.steps, 1),
+                            f"run {k + 1}/{p.restarts}, T = {temperature:.3g}, best validation NMSE {100 * best:.4g} %",
+                        )
+
             return report
 
-        runs = run_restarts(lambda k, seed, halt: self._search(data, seed, reporter(k), halt), p.restarts, p.workers, rng)
+        runs = run_restarts(
+            lambda k, seed, halt: self._search(data, seed, reporter(k), halt), p.restarts, p.workers, rng
+        )
         best = int(np.argmin([r[1] for r in runs]))
         state = runs[best][0]
         self.search_ = {"restarts": [r[2] for r in runs], "best_run": best}
         if not np.isfinite(runs[best][1]):
-            raise ValueError("every Lorenz network diverged in the RK4 integration; raise `substeps` or lower the "
-                             "parameter ranges")
+            raise ValueError(
+                "every Lorenz network diverged in the RK4 integration; raise `substeps` or lower the parameter ranges"
+            )
         self.element_params_, self.C_, self.B_, self.layer_ = state.params, state.C, state.B, state.layer
         progress("readout", None, "least squares on all 3M states")
         F = [self._states(s.u).reshape(s.n, -1) for s in data.series]
@@ -77,12 +102,19 @@ class LorenzNet(Family):
         return self
 
     def _states(self, u: np.ndarray) -> np.ndarray:
-        X, _ = simulate_network(self.element_params_, self.C_, self.B_, np.ascontiguousarray(u, dtype=np.float64),
-                                self.dt_, self.params.substeps)
+        X, _ = simulate_network(
+            self.element_params_,
+            self.C_,
+            self.B_,
+            np.ascontiguousarray(u, dtype=np.float64),
+            self.dt_,
+            self.params.substeps,
+        )
         return X
 
-    def simulate(self, u: np.ndarray, y_measured: np.ndarray | None = None,
-                 bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Simulation:
+    def simulate(
+        self, u: np.ndarray, y_measured: np.ndarray | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> Simulation:
         self.check_fitted()
         X = self._states(u).reshape(len(u), -1)
         y = X @ self.W_.T + self.w0_
@@ -102,15 +134,25 @@ class LorenzNet(Family):
         return LorenzNetworkSystem(self.element_params_, self.C_, self.B_, self.dt_, self.params.substeps, inputs)
 
     def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        arrays = {"element_params": self.element_params_, "C": self.C_, "B": self.B_, "layer": self.layer_,
-                  "W": self.W_, "w0": self.w0_}
-        attrs = {"dt": self.dt_, "n_inputs": self.n_inputs_, "n_outputs": self.n_outputs_,
-                 "search": getattr(self, "search_", None),
-                 "element_params_columns": ["sigma", "r", "b", "alpha"]}
+        arrays = {
+            "element_params": self.element_params_,
+            "C": self.C_,
+            "B": self.B_,
+            "layer": self.layer_,
+            "W": self.W_,
+            "w0": self.w0_,
+        }
+        attrs = {
+            "dt": self.dt_,
+            "n_inputs": self.n_inputs_,
+            "n_outputs": self.n_outputs_,
+            "search": getattr(self, "search_", None),
+            "element_params_columns": ["sigma", "r", "b", "alpha"],
+        }
         return arrays, attrs
 
     @classmethod
-    def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> "LorenzNet":
+    def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> LorenzNet:
         self = cls(**params)
         self.element_params_, self.C_, self.B_ = arrays["element_params"], arrays["C"], arrays["B"]
         self.layer_ = arrays["layer"].astype(np.int64)
@@ -121,12 +163,18 @@ class LorenzNet(Family):
         return self
 
     def summary(self) -> dict[str, Any]:
-        info = {"elements": int(self.element_params_.shape[0]), "strategy": self.params.strategy,
-                "couplings": int(np.count_nonzero(self.C_)), "layers": int(self.layer_.max()) + 1,
-                "integration": f"RK4, {self.params.substeps} steps per {self.dt_:g}"}
+        info = {
+            "elements": int(self.element_params_.shape[0]),
+            "strategy": self.params.strategy,
+            "couplings": int(np.count_nonzero(self.C_)),
+            "layers": int(self.layer_.max()) + 1,
+            "integration": f"RK4, {self.params.substeps} steps per {self.dt_:g}",
+        }
         search = getattr(self, "search_", None)
         if search:
             run = search["restarts"][search["best_run"]]
-            info["annealing"] = (f"{len(search['restarts'])} run(s); best validation NMSE {run['validation_nmse']:.4g} % "
-                                 f"(start {run['initial_validation_nmse']:.4g} %)")
+            info["annealing"] = (
+                f"{len(search['restarts'])} run(s); best validation NMSE {run['validation_nmse']:.4g} % "
+                f"(start {run['initial_validation_nmse']:.4g} %)"
+            )
         return info

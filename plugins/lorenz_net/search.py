@@ -5,6 +5,7 @@ offset (eq. 4.55) is fitted by least squares on the training rows. The evaluator
 trajectories of the last evaluated network and integrates again only the elements a
 move touched and those downstream of them (in the parallel strategy: one element of M).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -34,8 +35,14 @@ def _coupling(rng: np.random.Generator) -> float:
 
 def initial_state(p: LorenzNetParams, n_inputs: int, rng: np.random.Generator) -> LorenzState:
     m = p.size
-    params = np.column_stack([rng.uniform(*p.sigma_range, m), rng.uniform(*p.r_range, m),
-                              rng.uniform(*p.b_range, m), rng.uniform(*p.alpha_range, m)])
+    params = np.column_stack(
+        [
+            rng.uniform(*p.sigma_range, m),
+            rng.uniform(*p.r_range, m),
+            rng.uniform(*p.b_range, m),
+            rng.uniform(*p.alpha_range, m),
+        ]
+    )
     params = np.maximum(params, 1e-3)  # sigma, r, b, alpha > 0 keep every element reliable
     C = np.zeros((m, m))
     if p.strategy == "parallel":
@@ -50,7 +57,9 @@ def initial_state(p: LorenzNetParams, n_inputs: int, rng: np.random.Generator) -
             C[free[k]] = _coupling(rng)
     B = np.zeros((m, n_inputs))
     first = layer == 0
-    B[first] = 1.0 if n_inputs == 1 else np.array([[_coupling(rng) for _ in range(n_inputs)] for _ in range(int(first.sum()))])
+    B[first] = (
+        1.0 if n_inputs == 1 else np.array([[_coupling(rng) for _ in range(n_inputs)] for _ in range(int(first.sum()))])
+    )
     return LorenzState(params, C, B, layer)
 
 
@@ -105,7 +114,10 @@ def make_moves(p: LorenzNetParams):
         return element_moves
     share = p.coupling_share
     return [(n, w * (1.0 - share), f) for n, w, f in element_moves] + [
-        ("add", share / 3, add), ("cut", share / 3, cut), ("rescale", share / 3, rescale)]
+        ("add", share / 3, add),
+        ("cut", share / 3, cut),
+        ("rescale", share / 3, rescale),
+    ]
 
 
 class Evaluator:
@@ -114,8 +126,10 @@ class Evaluator:
 
     def __init__(self, data: TrainingData, p: LorenzNetParams, dt: float):
         if not data.has("validation"):
-            raise ValueError("lorenz-net optimizes its elements on a validation split; give data.split a validation "
-                             "part (e.g. {train: 0.67, validation: 0.33})")
+            raise ValueError(
+                "lorenz-net optimizes its elements on a validation split; give data.split a validation "
+                "part (e.g. {train: 0.67, validation: 0.33})"
+            )
         self.data, self.p, self.dt = data, p, dt
         self.Yv = data.targets("validation")
         self.var_v = np.maximum(np.var(self.Yv, axis=0), 1e-300)
@@ -129,8 +143,9 @@ class Evaluator:
         old = self.cached
         if old is None or old.params.shape != s.params.shape:
             return list(range(s.params.shape[0]))
-        rows = np.flatnonzero(np.any(old.params != s.params, axis=1) | np.any(old.C != s.C, axis=1)
-                              | np.any(old.B != s.B, axis=1))
+        rows = np.flatnonzero(
+            np.any(old.params != s.params, axis=1) | np.any(old.C != s.C, axis=1) | np.any(old.B != s.B, axis=1)
+        )
         return descendants(s.C, set(int(i) for i in rows))
 
     def features(self, s: LorenzState) -> list[np.ndarray]:

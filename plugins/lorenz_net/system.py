@@ -1,4 +1,5 @@
 """The driven-system view of a Lorenz network for `dynmodel reliability-check` (thesis 4.4.1)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -16,8 +17,7 @@ class LorenzNetworkSystem(DrivenSystem):
     description = "network of driven Lorenz systems (eq. 4.52, 4.59)"
     continuous = True
 
-    def __init__(self, params: np.ndarray, C: np.ndarray, B: np.ndarray, dt: float, substeps: int,
-                 inputs: InputDomain):
+    def __init__(self, params: np.ndarray, C: np.ndarray, B: np.ndarray, dt: float, substeps: int, inputs: InputDomain):
         self.params, self.C, self.B = params, C, B
         self.m = params.shape[0]
         self.state_dim = 3 * self.m
@@ -30,8 +30,16 @@ class LorenzNetworkSystem(DrivenSystem):
     def step(self, X: np.ndarray, V: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         R = X.shape[0]
         res = np.empty((R, self.m, 3))
-        step_elements(self.params, self.C, self.B, np.ascontiguousarray(X.reshape(R, self.m, 3)),
-                      np.ascontiguousarray(V), self.sampling_time, self.substeps, res)
+        step_elements(
+            self.params,
+            self.C,
+            self.B,
+            np.ascontiguousarray(X.reshape(R, self.m, 3)),
+            np.ascontiguousarray(V),
+            self.sampling_time,
+            self.substeps,
+            res,
+        )
         return res.reshape(R, self.state_dim)
 
     def tangent(self, X: np.ndarray, V: np.ndarray, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -66,11 +74,14 @@ class LorenzNetworkSystem(DrivenSystem):
         positive = bool(np.all(self.params > 0))
         lower = bool(np.all(np.triu(self.C) == 0))
         h = self.sampling_time / self.substeps
-        stiff = float(np.max(self.params[:, 3] * np.maximum.reduce([self.params[:, 0], self.params[:, 2],
-                                                                    np.ones(self.m)])) * h)
+        stiff = float(
+            np.max(self.params[:, 3] * np.maximum.reduce([self.params[:, 0], self.params[:, 2], np.ones(self.m)])) * h
+        )
         implies = "reliable" if positive and lower and stiff < 1.0 else "undecided"
-        statement = ("every element has sigma, b, alpha > 0, so it forgets its initial state for any drive "
-                     "(Lyapunov function of eq. 4.44 / 4.45), and the couplings are strictly lower triangular, so "
-                     f"the network is a cascade of such elements; RK4 step x rate = {stiff:.2g}"
-                     + ("" if implies == "reliable" else " (the numerical tests decide)"))
+        statement = (
+            "every element has sigma, b, alpha > 0, so it forgets its initial state for any drive "
+            "(Lyapunov function of eq. 4.44 / 4.45), and the couplings are strictly lower triangular, so "
+            f"the network is a cascade of such elements; RK4 step x rate = {stiff:.2g}"
+            + ("" if implies == "reliable" else " (the numerical tests decide)")
+        )
         return [Evidence("cascade of driven Lorenz elements", float(np.min(self.params)), implies, statement)]

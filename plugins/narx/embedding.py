@@ -5,6 +5,7 @@ A *regressor* is one data column at one lag: an input ``u[t-k]`` (k >= 0) or a p
 of exponents (eq. 3.10); the all-zero row is the constant. Terms are written as text the way
 the summary prints them: ``1``, ``u[t]``, ``y[t-2]^3``, ``y[t-1] * u[t-1]^2``.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -49,9 +50,11 @@ class Embedding:
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(source, channel, lag) as int64 arrays, for the kernels and the model file."""
-        return (np.array([r.source for r in self.regressors], dtype=np.int64),
-                np.array([r.channel for r in self.regressors], dtype=np.int64),
-                np.array([r.lag for r in self.regressors], dtype=np.int64))
+        return (
+            np.array([r.source for r in self.regressors], dtype=np.int64),
+            np.array([r.channel for r in self.regressors], dtype=np.int64),
+            np.array([r.lag for r in self.regressors], dtype=np.int64),
+        )
 
     def matrix(self, u: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Regressor values (n, size) of one recording; values before its first sample are 0
@@ -61,7 +64,7 @@ class Embedding:
         for j, r in enumerate(self.regressors):
             src = u if r.source == INPUT else y
             if r.lag < n:
-                X[r.lag:, j] = src[:n - r.lag, r.channel]
+                X[r.lag :, j] = src[: n - r.lag, r.channel]
         return X
 
     def label_of(self, exponents: np.ndarray) -> str:
@@ -72,8 +75,12 @@ def _lag_error(name: str, what: str) -> ValueError:
     return ValueError(f"lags.{name}: {what}")
 
 
-def build_embedding(lags: dict[str, list[int]] | None, input_names: list[str], output_names: list[str],
-                    extra: list[tuple[str, int]] = ()) -> Embedding:
+def build_embedding(
+    lags: dict[str, list[int]] | None,
+    input_names: list[str],
+    output_names: list[str],
+    extra: list[tuple[str, int]] = (),
+) -> Embedding:
     """Regressors from ``{column: [lags]}`` (None: every input [0, 1, 2], every output [1, 2])
     plus the (column, lag) pairs in ``extra`` (from explicit terms)."""
     table: dict[str, set[int]]
@@ -87,8 +94,11 @@ def build_embedding(lags: dict[str, list[int]] | None, input_names: list[str], o
     known = list(input_names) + list(output_names)
     for name, values in table.items():
         if name not in known:
-            raise _lag_error(name, f"'{name}' is not a column of the data; the model inputs are {list(input_names)} "
-                                   f"and the outputs {list(output_names)}")
+            raise _lag_error(
+                name,
+                f"'{name}' is not a column of the data; the model inputs are {list(input_names)} "
+                f"and the outputs {list(output_names)}",
+            )
         if name in output_names and 0 in values:
             raise _lag_error(name, f"output '{name}' at lag 0 is the value being predicted; output lags start at 1")
     regs = [Regressor(INPUT, c, lag, n) for c, n in enumerate(input_names) for lag in sorted(table.get(n, ()))]
@@ -99,6 +109,7 @@ def build_embedding(lags: dict[str, list[int]] | None, input_names: list[str], o
 
 
 # ---------------------------------------------------------------- terms as text
+
 
 def parse_term(text: str) -> list[tuple[str, int, int]]:
     """``'y[t-1]^2 * u[t]'`` -> [(name, lag, power), ...]; ``'1'`` -> [] (the constant)."""
@@ -139,6 +150,7 @@ def exponents_of(terms: list[str], emb: Embedding) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- the pool
+
 
 def pool_size(n_regressors: int, degree: int, constant: bool) -> int:
     """Number of monomials of total degree 1..degree in n variables, plus the constant."""

@@ -8,10 +8,11 @@ diverges in free run, the error-propagation scheme of thesis 6.3.2 is used: the 
 is a mixture ``mix * y + (1 - mix) * yhat`` whose measured share ``mix`` drops step by step to 0,
 each step starting from the previous solution.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -44,27 +45,80 @@ class Structure:
         """The measured share of the fed-back signal, one value per output."""
         return np.ascontiguousarray(np.broadcast_to(np.asarray(mix, dtype=np.float64), (self.n_out,)))
 
-    def run(self, u: np.ndarray, y: np.ndarray, w: np.ndarray, mix=0.0,
-            band: tuple[np.ndarray, np.ndarray] | None = None, clip=None):
+    def run(
+        self,
+        u: np.ndarray,
+        y: np.ndarray,
+        w: np.ndarray,
+        mix=0.0,
+        band: tuple[np.ndarray, np.ndarray] | None = None,
+        clip=None,
+    ):
         lo, hi = band if band is not None else (np.full(self.n_out, -np.inf), np.full(self.n_out, np.inf))
         clo, chi = clip if clip is not None else (self.clip_lo, self.clip_hi)
-        return kernels.free_run(u, y, self.src, self.ch, self.lag, self.ptr, self.reg, self.pw, self.out, w,
-                                self.n_out, self.start, self.mixture(mix), clo, chi, lo, hi)
+        return kernels.free_run(
+            u,
+            y,
+            self.src,
+            self.ch,
+            self.lag,
+            self.ptr,
+            self.reg,
+            self.pw,
+            self.out,
+            w,
+            self.n_out,
+            self.start,
+            self.mixture(mix),
+            clo,
+            chi,
+            lo,
+            hi,
+        )
 
     def run_jacobian(self, u: np.ndarray, y: np.ndarray, w: np.ndarray, mix, clip):
         inf = np.full(self.n_out, np.inf)
-        return kernels.free_run_jacobian(u, y, self.src, self.ch, self.lag, self.ptr, self.reg, self.pw, self.out,
-                                         w, self.n_out, self.start, self.mixture(mix), clip[0], clip[1], -inf, inf)
+        return kernels.free_run_jacobian(
+            u,
+            y,
+            self.src,
+            self.ch,
+            self.lag,
+            self.ptr,
+            self.reg,
+            self.pw,
+            self.out,
+            w,
+            self.n_out,
+            self.start,
+            self.mixture(mix),
+            clip[0],
+            clip[1],
+            -inf,
+            inf,
+        )
 
 
-def make_structure(emb, exponents: np.ndarray, term_output: np.ndarray, n_out: int, start: int,
-                   clip: tuple[np.ndarray, np.ndarray]) -> Structure:
+def make_structure(
+    emb, exponents: np.ndarray, term_output: np.ndarray, n_out: int, start: int, clip: tuple[np.ndarray, np.ndarray]
+) -> Structure:
     from .embedding import factor_lists
 
     src, ch, lag = emb.arrays()
     ptr, reg, pw = factor_lists(exponents)
-    return Structure(src, ch, lag, ptr, reg, pw, np.asarray(term_output, dtype=np.int64), n_out, start,
-                     np.asarray(clip[0], dtype=np.float64), np.asarray(clip[1], dtype=np.float64))
+    return Structure(
+        src,
+        ch,
+        lag,
+        ptr,
+        reg,
+        pw,
+        np.asarray(term_output, dtype=np.int64),
+        n_out,
+        start,
+        np.asarray(clip[0], dtype=np.float64),
+        np.asarray(clip[1], dtype=np.float64),
+    )
 
 
 @dataclass
@@ -77,7 +131,7 @@ class Scored:
     n: int
 
     @classmethod
-    def of(cls, data: TrainingData, split: str, start: int) -> "Scored":
+    def of(cls, data: TrainingData, split: str, start: int) -> Scored:
         rows: list[list[np.ndarray]] = [[] for _ in data.series]
         for s, a, b in data.segments.get(split, []):
             a = max(a, start)
@@ -92,8 +146,9 @@ class Scored:
         return cls(rr, stop, var, int(len(Y)))
 
 
-def split_error(st: Structure, data: TrainingData, scored: Scored, w: np.ndarray,
-                band: tuple[np.ndarray, np.ndarray]) -> float:
+def split_error(
+    st: Structure, data: TrainingData, scored: Scored, w: np.ndarray, band: tuple[np.ndarray, np.ndarray]
+) -> float:
     """Mean over outputs of the free-run NMSE (a fraction) on the scored rows; inf if a run diverges."""
     sq = np.zeros(st.n_out)
     for s, rows in enumerate(scored.rows):
@@ -108,11 +163,15 @@ def split_error(st: Structure, data: TrainingData, scored: Scored, w: np.ndarray
     return float(np.mean(sq / scored.n / scored.var)) if scored.n else np.nan
 
 
-def diverges(st: Structure, data: TrainingData, scored: Scored, w: np.ndarray,
-             band: tuple[np.ndarray, np.ndarray], mix=0.0) -> bool:
+def diverges(
+    st: Structure, data: TrainingData, scored: Scored, w: np.ndarray, band: tuple[np.ndarray, np.ndarray], mix=0.0
+) -> bool:
     """Whether a free run of any recording leaves the band before its last scored row."""
-    return any(st.run(data.series[s].u[:scored.stop[s]], data.series[s].y[:scored.stop[s]], w, mix, band)[1] >= 0
-               for s, rows in enumerate(scored.rows) if rows.size)
+    return any(
+        st.run(data.series[s].u[: scored.stop[s]], data.series[s].y[: scored.stop[s]], w, mix, band)[1] >= 0
+        for s, rows in enumerate(scored.rows)
+        if rows.size
+    )
 
 
 @dataclass
@@ -167,14 +226,30 @@ class FreeRunProblem:
         return float(r @ r)
 
 
-def refine(problem: FreeRunProblem, w0: np.ndarray, mixes: list[float], solver: str, max_nfev: int, tol: float,
-           after_step: Callable[[float, np.ndarray, object], None] | None = None) -> np.ndarray:
+def refine(
+    problem: FreeRunProblem,
+    w0: np.ndarray,
+    mixes: list[float],
+    solver: str,
+    max_nfev: int,
+    tol: float,
+    after_step: Callable[[float, np.ndarray, object], None] | None = None,
+) -> np.ndarray:
     """Solve the free-running least-squares problem at each mixture in turn (the last one is 0)."""
     w = np.asarray(w0, dtype=np.float64).copy()
     for mix in mixes:
         problem.mix = mix
-        res = least_squares(problem.residuals, w, jac=problem.jacobian, method=solver, x_scale="jac",
-                            ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev)
+        res = least_squares(
+            problem.residuals,
+            w,
+            jac=problem.jacobian,
+            method=solver,
+            x_scale="jac",
+            ftol=tol,
+            xtol=tol,
+            gtol=tol,
+            max_nfev=max_nfev,
+        )
         if np.all(np.isfinite(res.x)) and res.cost <= 0.5 * problem.cost(w) * (1 + 1e-12):
             w = res.x.copy()
         if after_step is not None:

@@ -21,6 +21,7 @@ for the output regressors r, with phi_t[k, j] the monomial j when out(j) = k, an
 derivative of the fed-back signal with respect to the prediction (1 - mix[k], 0 for measured values
 and 0 where the output was clipped).
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -8,6 +8,7 @@ every output's past. Weights: least squares, FOS's recursion (A.14 / A.15) or ri
 ``cost: mse_inf`` re-estimates the weights on the free-running error (eq. 3.15). The free run
 can be bounded (eq. 6.25) and reports the sample where it diverges.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -28,11 +29,15 @@ from .selection import free_run_selection
 
 class Narx(Family):
     name = "narx"
-    description = "polynomial NARX model: FOS structure selection, free-running estimation (thesis 3.1, 3.2, A.2.2, 6.3.2)"
+    description = (
+        "polynomial NARX model: FOS structure selection, free-running estimation (thesis 3.1, 3.2, A.2.2, 6.3.2)"
+    )
     Params = NarxFamilyParams
     stochastic = False  # FOS, least squares and the free-run refinement are deterministic
-    stability_hint = ("use cost: mse_inf (free-running estimation), bounds: 0.1 (clip the output, eq. 6.25), ridge: auto, "
-                      "or a lower degree")
+    stability_hint = (
+        "use cost: mse_inf (free-running estimation), bounds: 0.1 (clip the output, eq. 6.25), ridge: auto, "
+        "or a lower degree"
+    )
 
     params: NarxFamilyParams
 
@@ -46,19 +51,31 @@ class Narx(Family):
         return emb.max_lag if emb is not None else 0
 
     def _structure(self) -> Structure:
-        return make_structure(self.embedding_, self.exponents_, self.term_output_, self.n_outputs_, self.warmup,
-                              (self.clip_lo_, self.clip_hi_))
+        return make_structure(
+            self.embedding_,
+            self.exponents_,
+            self.term_output_,
+            self.n_outputs_,
+            self.warmup,
+            (self.clip_lo_, self.clip_hi_),
+        )
 
     @property
     def terms_(self) -> list[list[str]]:
         """Per output: the selected terms as text."""
         labels = [r.label for r in self.embedding_.regressors]
-        return [[term_label(e, labels) for e in self.exponents_[self.term_output_ == k]]
-                for k in range(self.n_outputs_)]
+        return [
+            [term_label(e, labels) for e in self.exponents_[self.term_output_ == k]] for k in range(self.n_outputs_)
+        ]
 
     # ------------------------------------------------------------------ fitting
-    def fit(self, data: TrainingData, cost: str = "mse1", rng: np.random.Generator | None = None,
-            progress: Progress = no_progress) -> "Narx":
+    def fit(
+        self,
+        data: TrainingData,
+        cost: str = "mse1",
+        rng: np.random.Generator | None = None,
+        progress: Progress = no_progress,
+    ) -> Narx:
         p = self.params
         self.n_inputs_, self.n_outputs_ = data.n_inputs, data.n_outputs
         self.output_names_ = list(data.output_names)
@@ -66,15 +83,18 @@ class Narx(Family):
         fixed = self._fixed_terms(data)
         extra = [(name, lag) for terms in (fixed or {}).values() for t in terms for name, lag, _ in parse_term(t)]
         self._check_names(extra, data)
-        self.embedding_ = build_embedding(p.lag_table() if (p.lags is not None or not fixed) else {},
-                                          data.input_names, data.output_names, extra)
+        self.embedding_ = build_embedding(
+            p.lag_table() if (p.lags is not None or not fixed) else {}, data.input_names, data.output_names, extra
+        )
         emb = self.embedding_
         first = emb.max_lag if p.start == "drop" else 0
         mats = pool_mod.regressor_matrices(data, emb)
         train = pool_mod.patterns(data, mats, "train", first)
         if train.n <= emb.size:
-            raise ValueError(f"only {train.n} training patterns with known regressors (largest lag {emb.max_lag}); "
-                             "provide more training data or use shorter lags")
+            raise ValueError(
+                f"only {train.n} training patterns with known regressors (largest lag {emb.max_lag}); "
+                "provide more training data or use shorter lags"
+            )
         val = pool_mod.patterns(data, mats, "validation", first) if data.has("validation") else None
         if val is not None and val.n == 0:
             val = None
@@ -84,14 +104,27 @@ class Narx(Family):
         self.refinement_: list[dict[str, Any]] = []
         if p.selection == "free_run" and fixed is None:
             if cost != "mse_inf":
-                raise ValueError("selection: free_run estimates the weights on the free-running error; use it with "
-                                 "cost: mse_inf (or selection: one_step)")
+                raise ValueError(
+                    "selection: free_run estimates the weights on the free-running error; use it with "
+                    "cost: mse_inf (or selection: one_step)"
+                )
             if p.ridge is not None:
-                raise ValueError("ridge applies to least-squares weights; selection: free_run estimates them on the "
-                                 "free-running error, so leave ridge out (or use selection: one_step)")
+                raise ValueError(
+                    "ridge applies to least-squares weights; selection: free_run estimates them on the "
+                    "free-running error, so leave ridge out (or use selection: one_step)"
+                )
             self._check_initial(data)
             exps, outs, weights, self.selection_ = free_run_selection(
-                emb, make_pool(emb.size, p), data, self.n_outputs_, self.warmup, (self.clip_lo_, self.clip_hi_), self._bounds, p, progress)
+                emb,
+                make_pool(emb.size, p),
+                data,
+                self.n_outputs_,
+                self.warmup,
+                (self.clip_lo_, self.clip_hi_),
+                self._bounds,
+                p,
+                progress,
+            )
             self.exponents_, self.term_output_, self.weights_ = exps, outs, weights
             return self
         if fixed is not None:
@@ -100,7 +133,8 @@ class Narx(Family):
             self.selection_ = {"method": "fixed", "terms": [int(np.sum(outs == k)) for k in range(self.n_outputs_)]}
         else:
             exps, outs, weights, self.selection_ = fos_structure(
-                make_pool(emb.size, p), train, val, p, self.output_names_, self._stability_check(data), progress)
+                make_pool(emb.size, p), train, val, p, self.output_names_, self._stability_check(data), progress
+            )
         self.exponents_, self.term_output_ = exps, outs
         self.weights_ = weights
         if p.ridge is not None:
@@ -114,8 +148,10 @@ class Narx(Family):
         known = set(data.input_names) | set(data.output_names)
         for name, _ in extra:
             if name not in known:
-                raise ValueError(f"terms: '{name}' is not a column of the data; the model inputs are "
-                                 f"{list(data.input_names)} and the outputs {list(data.output_names)}")
+                raise ValueError(
+                    f"terms: '{name}' is not a column of the data; the model inputs are "
+                    f"{list(data.input_names)} and the outputs {list(data.output_names)}"
+                )
 
     def _fixed_terms(self, data: TrainingData) -> dict[str, list[str]] | None:
         t = self.params.terms
@@ -153,8 +189,14 @@ class Narx(Family):
         splits = [Scored.of(data, s, start) for s in ("train", "validation") if data.has(s)]
 
         def check(k: int, exps: np.ndarray, w: np.ndarray) -> bool:
-            st = make_structure(self.embedding_, exps, np.full(len(exps), k, dtype=np.int64), self.n_outputs_, start,
-                                (self.clip_lo_, self.clip_hi_))
+            st = make_structure(
+                self.embedding_,
+                exps,
+                np.full(len(exps), k, dtype=np.int64),
+                self.n_outputs_,
+                start,
+                (self.clip_lo_, self.clip_hi_),
+            )
             mix = np.ones(self.n_outputs_)
             mix[k] = 0.0
             return any(diverges(st, data, sc, w, self._bounds, mix) for sc in splits)
@@ -185,14 +227,15 @@ class Narx(Family):
     def _ridge(self, data: TrainingData, train: pool_mod.Patterns, progress: Progress) -> None:
         """Ridge weights for the selected terms. ``auto``: the factor whose free run has the lowest
         validation error (thesis 6.3.2: ridge as a stabilizer, its factor tuned on validation)."""
-        vectors, factors = ridge_candidates(train, self.exponents_, self.term_output_, self.weights_,
-                                            self.params.ridge)
+        vectors, factors = ridge_candidates(train, self.exponents_, self.term_output_, self.weights_, self.params.ridge)
         if len(vectors) == 1:
             self.weights_, self.ridge_ = vectors[0], {"alpha": factors[0]}
             return
         if not data.has("validation"):
-            raise ValueError("ridge: auto chooses the factor on the validation split, and there is none; "
-                             "give a number or add a validation split")
+            raise ValueError(
+                "ridge: auto chooses the factor on the validation split, and there is none; "
+                "give a number or add a validation split"
+            )
         self._check_initial(data)
         st = self._structure()
         scored = Scored.of(data, "validation", st.start)
@@ -204,11 +247,15 @@ class Narx(Family):
             best = int(np.argmin(errors))
         else:
             best = len(vectors) - 1
-            warnings.warn("ridge: the free run diverges on the validation split for every factor tried; keeping the "
-                          "largest", stacklevel=2)
+            warnings.warn(
+                "ridge: the free run diverges on the validation split for every factor tried; keeping the largest",
+                stacklevel=2,
+            )
         self.weights_ = vectors[best]
-        self.ridge_ = {"alpha": factors[best],
-                       "validation_nmse": [None if not np.isfinite(e) else 100 * e for e in errors]}
+        self.ridge_ = {
+            "alpha": factors[best],
+            "validation_nmse": [None if not np.isfinite(e) else 100 * e for e in errors],
+        }
 
     # ------------------------------------------------------------------ mse_inf (3.15, 6.3.2)
     def _refine(self, data: TrainingData, progress: Progress) -> None:
@@ -230,31 +277,43 @@ class Narx(Family):
         mixes = [1.0 - i / r.ramp for i in range(1, r.ramp + 1)] if unstable else [0.0]
 
         def record(mix: float, w: np.ndarray, res) -> None:
-            entry = {"mix": float(mix), "train_cost": float(2 * res.cost), "nfev": int(res.nfev),
-                     "status": int(res.status)}
+            entry = {
+                "mix": float(mix),
+                "train_cost": float(2 * res.cost),
+                "nfev": int(res.nfev),
+                "status": int(res.status),
+            }
             if val is not None and mix == 0.0:
                 e = split_error(st, data, val, w, self._bounds)
                 entry["validation_nmse"] = None if not np.isfinite(e) else 100 * e
             self.refinement_.append(entry)
             progress("mse_inf", None, f"mix {mix:.2f}: cost {2 * res.cost:.4g} after {res.nfev} runs")
 
-        start = {"mix": 1.0 if unstable else 0.0, "train_cost": problem.cost(self.weights_) if not unstable else None,
-                 "diverged": bool(unstable)}
+        start = {
+            "mix": 1.0 if unstable else 0.0,
+            "train_cost": problem.cost(self.weights_) if not unstable else None,
+            "diverged": bool(unstable),
+        }
         if val is not None:
             e = split_error(st, data, val, self.weights_, self._bounds)
             start["validation_nmse"] = None if not np.isfinite(e) else 100 * e
         self.refinement_.append(start)
         self.weights_ = refine(problem, self.weights_, mixes, r.solver, r.max_nfev, r.tol, record)
         if diverges(st, data, scored, self.weights_, self._bounds):
-            warnings.warn("cost mse_inf: the re-estimated model still leaves the divergence band in free run on the "
-                          "training data; try bounds, ridge, a lower degree or fewer terms", stacklevel=2)
+            warnings.warn(
+                "cost mse_inf: the re-estimated model still leaves the divergence band in free run on the "
+                "training data; try bounds, ridge, a lower degree or fewer terms",
+                stacklevel=2,
+            )
 
     def _check_initial(self, data: TrainingData) -> None:
         L = self.warmup
         for i, s in enumerate(data.series):
             if L and not np.isfinite(s.y[:L]).all():
-                raise ValueError(f"the free run of recording {i + 1} starts from its first {L} measured outputs, which lie "
-                                 "in the test split; use initial: zeros or put the test range later")
+                raise ValueError(
+                    f"the free run of recording {i + 1} starts from its first {L} measured outputs, which lie "
+                    "in the test split; use initial: zeros or put the test range later"
+                )
 
     # ------------------------------------------------------------------ prediction
     def _initial(self, y_measured: np.ndarray | None, n: int) -> np.ndarray:
@@ -264,13 +323,16 @@ class Narx(Family):
         have = 0 if y_measured is None else len(y_measured)
         Y = None if y_measured is None else np.asarray(y_measured, dtype=np.float64).reshape(have, -1)
         if Y is None or have < L or not np.isfinite(Y[:L]).all():
-            raise ValueError(f"this NARX model starts its free run from the first {L} measured output samples "
-                             f"(initial: measured); got {have if Y is None else int(np.isfinite(Y[:L]).all(axis=1).sum())} "
-                             "finite ones")
+            raise ValueError(
+                f"this NARX model starts its free run from the first {L} measured output samples "
+                f"(initial: measured); got {have if Y is None else int(np.isfinite(Y[:L]).all(axis=1).sum())} "
+                "finite ones"
+            )
         return np.ascontiguousarray(Y[:L])
 
-    def simulate(self, u: np.ndarray, y_measured: np.ndarray | None = None,
-                 bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Simulation:
+    def simulate(
+        self, u: np.ndarray, y_measured: np.ndarray | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> Simulation:
         self.check_fitted()
         u = np.ascontiguousarray(u, dtype=np.float64)
         Y = self._initial(y_measured, u.shape[0])
@@ -288,21 +350,35 @@ class Narx(Family):
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         src, ch, lag = self.embedding_.arrays()
-        arrays = {"exponents": self.exponents_, "term_output": self.term_output_, "weights": self.weights_,
-                  "regressor_source": src, "regressor_channel": ch, "regressor_lag": lag,
-                  "clip_low": self.clip_lo_, "clip_high": self.clip_hi_}
-        attrs = {"regressor_names": [r.name for r in self.embedding_.regressors], "terms": self.terms_,
-                 "n_inputs": self.n_inputs_, "n_outputs": self.n_outputs_, "output_names": self.output_names_,
-                 "selection": self.selection_, "refinement": self.refinement_,
-                 "ridge": getattr(self, "ridge_", None)}
+        arrays = {
+            "exponents": self.exponents_,
+            "term_output": self.term_output_,
+            "weights": self.weights_,
+            "regressor_source": src,
+            "regressor_channel": ch,
+            "regressor_lag": lag,
+            "clip_low": self.clip_lo_,
+            "clip_high": self.clip_hi_,
+        }
+        attrs = {
+            "regressor_names": [r.name for r in self.embedding_.regressors],
+            "terms": self.terms_,
+            "n_inputs": self.n_inputs_,
+            "n_outputs": self.n_outputs_,
+            "output_names": self.output_names_,
+            "selection": self.selection_,
+            "refinement": self.refinement_,
+            "ridge": getattr(self, "ridge_", None),
+        }
         return arrays, attrs
 
     @classmethod
-    def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> "Narx":
+    def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> Narx:
         self = cls(**params)
         names = list(attrs["regressor_names"])
-        src, ch, lag = (np.asarray(arrays[k], dtype=np.int64) for k in
-                        ("regressor_source", "regressor_channel", "regressor_lag"))
+        src, ch, lag = (
+            np.asarray(arrays[k], dtype=np.int64) for k in ("regressor_source", "regressor_channel", "regressor_lag")
+        )
         self.embedding_ = Embedding([Regressor(int(s), int(c), int(l), n) for s, c, l, n in zip(src, ch, lag, names)])
         self.exponents_ = np.asarray(arrays["exponents"], dtype=np.int64).reshape(-1, len(names))
         self.term_output_ = np.asarray(arrays["term_output"], dtype=np.int64)
@@ -318,14 +394,17 @@ class Narx(Family):
         return self
 
     def summary(self) -> dict[str, Any]:
-        info: dict[str, Any] = {"regressors": [r.label for r in self.embedding_.regressors],
-                                "selection": self.selection_.get("method")}
+        info: dict[str, Any] = {
+            "regressors": [r.label for r in self.embedding_.regressors],
+            "selection": self.selection_.get("method"),
+        }
         if "pool" in self.selection_:
             info["pool"] = self.selection_["pool"]
         for k, name in enumerate(self.output_names_):
             w = self.weights_[self.term_output_ == k]
-            info[f"model {name}"] = " + ".join(f"{wi:.6g} {t}" if t != "1" else f"{wi:.6g}"
-                                              for wi, t in zip(w, self.terms_[k])).replace("+ -", "- ")
+            info[f"model {name}"] = " + ".join(
+                f"{wi:.6g} {t}" if t != "1" else f"{wi:.6g}" for wi, t in zip(w, self.terms_[k])
+            ).replace("+ -", "- ")
         info["warmup"] = self.warmup
         if np.isfinite(self.clip_lo_).any():
             info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(self.clip_lo_, self.clip_hi_)]
@@ -335,7 +414,9 @@ class Narx(Family):
             last = self.refinement_[-1]
             info["mse_inf solves"] = len(self.refinement_) - 1
             if self.refinement_[0].get("diverged"):
-                info["mse_inf error propagation"] = "the least-squares model diverged; mixture ramped to pure prediction"
+                info["mse_inf error propagation"] = (
+                    "the least-squares model diverged; mixture ramped to pure prediction"
+                )
             if last.get("validation_nmse") is not None:
                 info["mse_inf validation NMSE %"] = round(float(last["validation_nmse"]), 6)
         return info

@@ -7,9 +7,11 @@
 * :func:`fixed_weights` - least squares for a given structure.
 * :func:`ridge_candidates` - ridge weights of the selected terms for one factor or a grid (6.3.2).
 """
+
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -27,28 +29,47 @@ StabilityCheck = Callable[[int, np.ndarray, np.ndarray], bool]
 def make_pool(n_regressors: int, p: NarxFamilyParams) -> np.ndarray:
     K = pool_size(n_regressors, p.degree, p.constant)
     if K > p.max_pool:
-        raise ValueError(f"the pool would hold {K} monomials ({n_regressors} regressors up to degree {p.degree}), more "
-                         f"than max_pool = {p.max_pool}; lower the degree, use fewer lags, or raise max_pool")
+        raise ValueError(
+            f"the pool would hold {K} monomials ({n_regressors} regressors up to degree {p.degree}), more "
+            f"than max_pool = {p.max_pool}; lower the degree, use fewer lags, or raise max_pool"
+        )
     return pool_exponents(n_regressors, p.degree, p.constant)
 
 
-def fos_structure(E: np.ndarray, train: pool_mod.Patterns, val: pool_mod.Patterns | None, p: NarxFamilyParams,
-                  output_names: list[str], stability: StabilityCheck | None, progress: Progress):
+def fos_structure(
+    E: np.ndarray,
+    train: pool_mod.Patterns,
+    val: pool_mod.Patterns | None,
+    p: NarxFamilyParams,
+    output_names: list[str],
+    stability: StabilityCheck | None,
+    progress: Progress,
+):
     """FOS per output on the shared Gram matrix; returns (exponents, term outputs, weights, info)."""
     progress("pool", None, f"Gram matrix of {E.shape[0]} monomials on {train.n} patterns")
     G, C = pool_mod.gram(train.X, train.Y, E)
     use_val = val is not None and p.patience is not None
     if not use_val and p.max_terms is None and p.threshold is None:
-        raise ValueError("FOS needs a stopping rule: a validation split (data.split.validation, used with patience), "
-                         "max_terms or threshold")
+        raise ValueError(
+            "FOS needs a stopping rule: a validation split (data.split.validation, used with patience), "
+            "max_terms or threshold"
+        )
     lazy = pool_mod.LazyColumns(val.X, E) if use_val else None
     forced = (0,) if p.constant else ()
     rows, outs, weights, info = [], [], [], []
     for k, name in enumerate(output_names):
         y = train.Y[:, k]
-        path = regression.fos_select(G, C[:, k], float(y @ y), forced=forced, max_terms=p.max_terms,
-                                     threshold=p.threshold, Pv=lazy, yv=val.Y[:, k] if use_val else None,
-                                     patience=p.patience or 1)
+        path = regression.fos_select(
+            G,
+            C[:, k],
+            float(y @ y),
+            forced=forced,
+            max_terms=p.max_terms,
+            threshold=p.threshold,
+            Pv=lazy,
+            yv=val.Y[:, k] if use_val else None,
+            patience=p.patience or 1,
+        )
         best = path.best
         if best == 0:
             raise ValueError(f"FOS selected no term for output '{name}'; lower the threshold")
@@ -65,13 +86,21 @@ def fos_structure(E: np.ndarray, train: pool_mod.Patterns, val: pool_mod.Pattern
         rows.append(E[kept])
         outs += [k] * len(kept)
         weights.append(w)
-        info.append({"order": kept.tolist(),
-                     "error_reduction": (path.error_reduction[:best] / max(float(y @ y), 1e-300)).tolist(),
-                     "validation_mse": None if path.validation_error is None else path.validation_error.tolist(),
-                     "dropped_for_stability": dropped})
+        info.append(
+            {
+                "order": kept.tolist(),
+                "error_reduction": (path.error_reduction[:best] / max(float(y @ y), 1e-300)).tolist(),
+                "validation_mse": None if path.validation_error is None else path.validation_error.tolist(),
+                "dropped_for_stability": dropped,
+            }
+        )
         progress("fos", (k + 1) / len(output_names), f"output {name}: {len(kept)} terms")
-    selection: dict[str, Any] = {"method": "fos", "pool": int(E.shape[0]), "terms": [len(r) for r in rows],
-                                 "path": info}
+    selection: dict[str, Any] = {
+        "method": "fos",
+        "pool": int(E.shape[0]),
+        "terms": [len(r) for r in rows],
+        "path": info,
+    }
     return np.vstack(rows), np.array(outs, dtype=np.int64), np.concatenate(weights), selection
 
 
@@ -85,8 +114,9 @@ def fixed_weights(train: pool_mod.Patterns, exps: np.ndarray, outs: np.ndarray, 
     return w
 
 
-def ridge_candidates(train: pool_mod.Patterns, exps: np.ndarray, outs: np.ndarray, w: np.ndarray,
-                     ridge: float | str) -> tuple[list[np.ndarray], list[list[float]]]:
+def ridge_candidates(
+    train: pool_mod.Patterns, exps: np.ndarray, outs: np.ndarray, w: np.ndarray, ridge: float | str
+) -> tuple[list[np.ndarray], list[list[float]]]:
     """Ridge weights of the selected terms (the constant is not penalised) for the factor ``ridge``,
     or for each of 29 factors over [1e-14, 1] x the largest squared singular value (``'auto'``,
     the same grid for every output by position). Returns the weight vectors and, per vector,
@@ -99,7 +129,9 @@ def ridge_candidates(train: pool_mod.Patterns, exps: np.ndarray, outs: np.ndarra
         cols = idx[~const[idx]]
         F = pool_mod.evaluate(train.X, exps[cols])
         alphas = None if ridge == "auto" else [float(ridge)]
-        per_output.append((idx, cols, has_const, regression.ridge_path(F, train.Y[:, k], alphas, fit_intercept=has_const)))
+        per_output.append(
+            (idx, cols, has_const, regression.ridge_path(F, train.Y[:, k], alphas, fit_intercept=has_const))
+        )
     n_alpha = len(per_output[0][3])
     vectors, factors = [], []
     for i in range(n_alpha):

@@ -4,12 +4,12 @@ Lags are written per data column (model input names, including delay-line copies
 ``u@80``, and output names): a list of integers and ranges, a range being
 ``{from: 0, to: 18, step: 2}`` with both ends included (thesis eq. 3.5 / 6.24 / 6.26).
 """
+
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal, Optional, Union
 
 import numpy as np
-
 from pydantic import ConfigDict, Field, ValidationError, field_validator, model_serializer, model_validator
 
 from dynmodel.family import FamilyParams
@@ -29,7 +29,7 @@ class LagRange(FamilyParams):
         return {"from": self.start, "to": self.stop, "step": self.step}
 
     @model_validator(mode="after")
-    def _ordered(self) -> "LagRange":
+    def _ordered(self) -> LagRange:
         if self.stop < self.start:
             raise ValueError(f"from {self.start} to {self.stop} is empty (to < from)")
         return self
@@ -53,57 +53,91 @@ class FreeRunRefinement(FamilyParams):
     """`cost: mse_inf`: the selected weights re-estimated on free-running error (eq. 3.15)."""
 
     solver: Literal["lm", "trf"] = Field(
-        "lm", description="scipy.optimize.least_squares method: lm (Levenberg-Marquardt) or trf (trust region); "
-        "both use the exact Jacobian of the free run from the sensitivity recursion")
+        "lm",
+        description="scipy.optimize.least_squares method: lm (Levenberg-Marquardt) or trf (trust region); "
+        "both use the exact Jacobian of the free run from the sensitivity recursion",
+    )
     max_nfev: int = Field(200, ge=1, description="at most this many free runs per solve")
     tol: float = Field(1e-10, gt=0, description="relative tolerance on the cost, the step and the gradient")
-    ramp: int = Field(5, ge=1, description="when the least-squares model diverges in free run: solves over which the "
-                                           "fed-back signal moves from measured to predicted output (error propagation, "
-                                           "thesis 6.3.2)")
+    ramp: int = Field(
+        5,
+        ge=1,
+        description="when the least-squares model diverges in free run: solves over which the "
+        "fed-back signal moves from measured to predicted output (error propagation, "
+        "thesis 6.3.2)",
+    )
 
 
 class NarxFamilyParams(FamilyParams):
     lags: Optional[dict[str, list[LagItem]]] = Field(
-        None, description="regressors per data column: {name: [lags]}, a lag being an integer or {from, to, step} "
-        "(ends included); inputs may use lag 0, outputs start at 1. Default: every input [0, 1, 2], every output [1, 2]")
-    degree: int = Field(2, ge=1, le=10, description="largest total degree of the monomials in the pool (eq. 3.10 / 3.11)")
+        None,
+        description="regressors per data column: {name: [lags]}, a lag being an integer or {from, to, step} "
+        "(ends included); inputs may use lag 0, outputs start at 1. Default: every input [0, 1, 2], every output [1, 2]",
+    )
+    degree: int = Field(
+        2, ge=1, le=10, description="largest total degree of the monomials in the pool (eq. 3.10 / 3.11)"
+    )
     constant: bool = Field(True, description="offer a constant term (always selected first)")
     terms: Optional[Union[list[str], dict[str, list[str]]]] = Field(
-        None, description="a fixed structure instead of FOS: monomials such as 'y[t-1]^2 * u[t]' and '1' for the "
-        "constant; one list for every output, or {output: [...]}. Lags not in 'lags' are added")
+        None,
+        description="a fixed structure instead of FOS: monomials such as 'y[t-1]^2 * u[t]' and '1' for the "
+        "constant; one list for every output, or {output: [...]}. Lags not in 'lags' are added",
+    )
     selection: Literal["one_step", "free_run"] = Field(
-        "one_step", description="one_step: Fast Orthogonal Search on the one-step error (thesis A.2.2); free_run (needs "
+        "one_step",
+        description="one_step: Fast Orthogonal Search on the one-step error (thesis A.2.2); free_run (needs "
         "cost: mse_inf): forward selection on the linearised free-running error, every step re-estimating the weights "
-        "on the free run (robust to noisy outputs)")
+        "on the free run (robust to noisy outputs)",
+    )
     max_terms: Optional[int] = Field(None, gt=0, description="at most this many terms per output (the constant counts)")
     threshold: Optional[float] = Field(
-        None, gt=0, lt=1, description="stop when the next term reduces the squared error by less than this fraction "
-        "of the target's energy y'y")
+        None,
+        gt=0,
+        lt=1,
+        description="stop when the next term reduces the squared error by less than this fraction "
+        "of the target's energy y'y",
+    )
     patience: Optional[int] = Field(
-        1, ge=1, description="stop after this many terms without a lower validation error (one-step for one_step, "
+        1,
+        ge=1,
+        description="stop after this many terms without a lower validation error (one-step for one_step, "
         "free-running for free_run) and keep the best size (1: the first rise, thesis A.3); null: do not use the "
-        "validation split")
+        "validation split",
+    )
     drop_unstable: bool = Field(
-        True, description="one_step: if the selected polynomial's free run leaves the divergence band on the training or "
+        True,
+        description="one_step: if the selected polynomial's free run leaves the divergence band on the training or "
         "validation data, drop terms from the end of the FOS order until it does not (a smaller model is often the "
-        "stable one, thesis 3.1.4); false: keep the selection as it is")
+        "stable one, thesis 3.1.4); false: keep the selection as it is",
+    )
     weights: Literal["lstsq", "recursion"] = Field(
-        "lstsq", description="weights of the selected terms: least squares on the data, or FOS's recursion (eq. A.14 / A.15)")
+        "lstsq",
+        description="weights of the selected terms: least squares on the data, or FOS's recursion (eq. A.14 / A.15)",
+    )
     ridge: Optional[Union[float, Literal["auto"]]] = Field(
-        None, description="ridge factor k for the selected terms (stabilization, thesis 6.3.2): a number >= 0, or auto: "
-        "the factor with the lowest free-running validation error")
+        None,
+        description="ridge factor k for the selected terms (stabilization, thesis 6.3.2): a number >= 0, or auto: "
+        "the factor with the lowest free-running validation error",
+    )
     bounds: Optional[Union[Annotated[float, Field(ge=0)], dict[str, tuple[Optional[float], Optional[float]]]]] = Field(
-        None, description="clip the free-running output (eq. 6.25): a number m clips every output to its training range "
+        None,
+        description="clip the free-running output (eq. 6.25): a number m clips every output to its training range "
         "widened by m x the range on both sides; {output: [L, U]} gives bounds in the data's units (null: that side "
-        "unbounded); null: no clipping")
+        "unbounded); null: no clipping",
+    )
     start: Literal["drop", "zeros"] = Field(
-        "drop", description="training patterns at a recording's start (thesis 3.1.1): drop those whose regressors reach "
-        "before the first sample, or fill the missing past with zeros")
+        "drop",
+        description="training patterns at a recording's start (thesis 3.1.1): drop those whose regressors reach "
+        "before the first sample, or fill the missing past with zeros",
+    )
     initial: Literal["measured", "zeros"] = Field(
-        "measured", description="free run: measured: the first L samples (L = the largest lag) are the measured outputs "
-        "and the prediction starts at sample L; zeros: every value before the first sample is 0 (model space)")
-    max_pool: int = Field(3000, ge=1, description="refuse pools with more monomials than this (memory and time grow with "
-                                                  "its square)")
+        "measured",
+        description="free run: measured: the first L samples (L = the largest lag) are the measured outputs "
+        "and the prediction starts at sample L; zeros: every value before the first sample is 0 (model space)",
+    )
+    max_pool: int = Field(
+        3000, ge=1, description="refuse pools with more monomials than this (memory and time grow with its square)"
+    )
     refinement: FreeRunRefinement = Field(default_factory=FreeRunRefinement)
 
     @field_validator("lags", mode="before")
@@ -129,14 +163,20 @@ class NarxFamilyParams(FamilyParams):
                     except ValidationError as exc:
                         errs = exc.errors()
                         e = next((x for x in errs if x["type"] == "extra_forbidden"), errs[0])
-                        what = (f"unknown key '{e['loc'][-1]}'" if e["type"] == "extra_forbidden"
-                                else f"{'.'.join(str(x) for x in e['loc'])}: {e['msg']}" if e["loc"]
-                                else e["msg"].removeprefix("Value error, "))
-                        raise ValueError(f"{name}: lag range {item}: {what}; write {{from: 0, to: 18, step: 2}} "
-                                         "(ends included)") from None
+                        what = (
+                            f"unknown key '{e['loc'][-1]}'"
+                            if e["type"] == "extra_forbidden"
+                            else f"{'.'.join(str(x) for x in e['loc'])}: {e['msg']}"
+                            if e["loc"]
+                            else e["msg"].removeprefix("Value error, ")
+                        )
+                        raise ValueError(
+                            f"{name}: lag range {item}: {what}; write {{from: 0, to: 18, step: 2}} (ends included)"
+                        ) from None
                 else:
-                    raise ValueError(f"{name}: {item!r} is not a lag; write an integer >= 0 or a range "
-                                     "{from: 0, to: 18, step: 2}")
+                    raise ValueError(
+                        f"{name}: {item!r} is not a lag; write an integer >= 0 or a range {{from: 0, to: 18, step: 2}}"
+                    )
             out[str(name)] = parsed
         if not any(expand_lags(items) for items in out.values()):
             raise ValueError("give at least one lag, e.g. {u: [0, 1], y: [1]}")

@@ -4,6 +4,7 @@ FOS needs only G = P^T P, P^T y and y^T y of the pool P (eq. 3.13), so P is buil
 row chunks and never held whole; the validation pool is evaluated column by column, only for
 the terms FOS actually selects.
 """
+
 from __future__ import annotations
 
 import math
@@ -90,12 +91,12 @@ def chunked_gram(X: np.ndarray, Y: np.ndarray, exponents: np.ndarray) -> tuple[n
     C = np.zeros((K, Y.shape[1]))
     P = np.empty((min(rows, X.shape[0]), K))
     for a in range(0, X.shape[0], rows):
-        Xc = np.ascontiguousarray(X[a:a + rows])
-        Pc = P[:Xc.shape[0]]
+        Xc = np.ascontiguousarray(X[a : a + rows])
+        Pc = P[: Xc.shape[0]]
         kernels.monomials(Xc, ptr, reg, pw, Pc)
         # Pc is C-ordered (m, K), i.e. Fortran-ordered (K, m): G += Pc^T Pc as a rank-m update
         G = blas.dsyrk(1.0, Pc.T, beta=1.0, c=G, trans=0, lower=0, overwrite_c=1)
-        C += Pc.T @ Y[a:a + rows]
+        C += Pc.T @ Y[a : a + rows]
     G = np.triu(G) + np.triu(G, 1).T
     return np.ascontiguousarray(G), C
 
@@ -156,7 +157,7 @@ class LazyColumns:
 
     def column(self, j: int) -> np.ndarray:
         if j not in self.cache:
-            self.cache[j] = evaluate(self.X, self.exponents[j:j + 1])[:, 0]
+            self.cache[j] = evaluate(self.X, self.exponents[j : j + 1])[:, 0]
         return self.cache[j]
 
     def __getitem__(self, key) -> np.ndarray:

@@ -14,6 +14,7 @@ re-estimated on the free-running error (nonlinear least squares), and the loop s
 ``max_terms``, at ``threshold``, or when the free-running validation error has not reached a
 new low for ``patience`` terms (A.3); the best model on validation is kept.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -39,8 +40,9 @@ class Candidates:
     output: np.ndarray  # (C,)
 
 
-def _sensitivity_gram(emb: Embedding, st, data: TrainingData, scored: Scored, w: np.ndarray,
-                      cand: Candidates, first: int, m: int) -> tuple[np.ndarray, np.ndarray, float]:
+def _sensitivity_gram(
+    emb: Embedding, st, data: TrainingData, scored: Scored, w: np.ndarray, cand: Candidates, first: int, m: int
+) -> tuple[np.ndarray, np.ndarray, float]:
     """The parts of the Gram matrix FOS reads, the correlations with the scaled residual, and the
     scaled target energy y'y of the candidates' free-run sensitivity columns, over the scored
     training rows at or after ``first``.
@@ -50,7 +52,7 @@ def _sensitivity_gram(emb: Embedding, st, data: TrainingData, scored: Scored, w:
     <g_i|g_i> and <g_i|g_{i_k}> of the selected terms), so only those are computed (N C (m + 1)
     products instead of N C^2 / 2); the other entries are 0."""
     src, ch, lag = emb.arrays()
-    fed = (src == OUTPUT)
+    fed = src == OUTPUT
     ptr, reg, pw = factor_lists(cand.exponents)
     n_out = st.n_out
     scale = 1.0 / np.sqrt(scored.n * scored.var)
@@ -79,8 +81,9 @@ def _sensitivity_gram(emb: Embedding, st, data: TrainingData, scored: Scored, w:
         prev = np.zeros((P, n_out, C))
         for t0 in range(0, stop, _ROWS):
             t1 = min(stop, t0 + _ROWS)
-            S = kernels.candidate_sensitivities(X, D, ch, lag, fed, live, ptr, reg, pw, cand.output,
-                                                st.start, t0, t1, prev)
+            S = kernels.candidate_sensitivities(
+                X, D, ch, lag, fed, live, ptr, reg, pw, cand.output, st.start, t0, t1, prev
+            )
             keep = use[t0:t1]
             if keep.any():
                 A = np.ascontiguousarray((S[keep] * scale[None, :, None]).reshape(-1, C))
@@ -98,9 +101,17 @@ def _sensitivity_gram(emb: Embedding, st, data: TrainingData, scored: Scored, w:
     return G, c, yy
 
 
-def free_run_selection(emb: Embedding, pool: np.ndarray, data: TrainingData, n_out: int, start: int,
-                       clip: tuple[np.ndarray, np.ndarray], band: tuple[np.ndarray, np.ndarray],
-                       params: NarxFamilyParams, progress: Progress) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+def free_run_selection(
+    emb: Embedding,
+    pool: np.ndarray,
+    data: TrainingData,
+    n_out: int,
+    start: int,
+    clip: tuple[np.ndarray, np.ndarray],
+    band: tuple[np.ndarray, np.ndarray],
+    params: NarxFamilyParams,
+    progress: Progress,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
     """Grow the model term by term on the linearised free-running error (module docstring)."""
     p = params
     r = p.refinement
@@ -108,14 +119,19 @@ def free_run_selection(emb: Embedding, pool: np.ndarray, data: TrainingData, n_o
     val = Scored.of(data, "validation", start) if data.has("validation") else None
     use_val = val is not None and val.n > 0 and p.patience is not None
     if not use_val and p.max_terms is None and p.threshold is None:
-        raise ValueError("selection: free_run needs a stopping rule: a validation split (used with patience), "
-                         "max_terms or threshold")
+        raise ValueError(
+            "selection: free_run needs a stopping rule: a validation split (used with patience), max_terms or threshold"
+        )
     const = ~pool.any(axis=1)
     if p.constant:
         exps = np.repeat(pool[const][:1], n_out, axis=0)
         outs = np.arange(n_out, dtype=np.int64)
-        w = np.array([np.mean(np.concatenate([data.series[s].y[rr, k] for s, rr in enumerate(scored.rows)]))
-                      for k in range(n_out)])
+        w = np.array(
+            [
+                np.mean(np.concatenate([data.series[s].y[rr, k] for s, rr in enumerate(scored.rows)]))
+                for k in range(n_out)
+            ]
+        )
     else:
         exps = np.zeros((0, emb.size), dtype=np.int64)
         outs = np.zeros(0, dtype=np.int64)
@@ -144,12 +160,15 @@ def free_run_selection(emb: Embedding, pool: np.ndarray, data: TrainingData, n_o
         new = [(e, k) for k in range(n_out) if counts[k] < limit for e in pool if (k, e.tobytes()) not in taken]
         if not new:
             break
-        cand = Candidates(np.vstack([exps] + [e[None] for e, _ in new]),
-                          np.concatenate([outs, np.array([k for _, k in new], dtype=np.int64)]))
+        cand = Candidates(
+            np.vstack([exps] + [e[None] for e, _ in new]),
+            np.concatenate([outs, np.array([k for _, k in new], dtype=np.int64)]),
+        )
         m = len(w)
         G, c, yy = _sensitivity_gram(emb, st, data, scored, w, cand, first, m)
-        path = regression.fos_select(G, c, yy, forced=tuple(range(m)), max_terms=m + 1, threshold=p.threshold,
-                                     ties=1e-9)
+        path = regression.fos_select(
+            G, c, yy, forced=tuple(range(m)), max_terms=m + 1, threshold=p.threshold, ties=1e-9
+        )
         if len(path.order) <= m:
             break
         j = int(path.order[m])
@@ -160,11 +179,20 @@ def free_run_selection(emb: Embedding, pool: np.ndarray, data: TrainingData, n_o
         st = make_structure(emb, exps, outs, n_out, start, clip)
         w = refine(FreeRunProblem(st, data, scored, finite_clip), w, [0.0], r.solver, r.max_nfev, r.tol)
         label = emb.label_of(cand.exponents[j])
-        history.append({"added": label if n_out == 1 else f"{label} (output {int(cand.output[j]) + 1})",
-                        "error_reduction": float(path.error_reduction[m] / max(yy, 1e-300)), "terms": int(len(w))})
+        history.append(
+            {
+                "added": label if n_out == 1 else f"{label} (output {int(cand.output[j]) + 1})",
+                "error_reduction": float(path.error_reduction[m] / max(yy, 1e-300)),
+                "terms": int(len(w)),
+            }
+        )
         progress("select", None, f"{len(w)} terms: + {label}")
     assert best is not None
     exps, outs, w = best
-    info = {"method": "free_run", "pool": int(pool.shape[0]),
-            "terms": [int(np.sum(outs == k)) for k in range(n_out)], "path": history}
+    info = {
+        "method": "free_run",
+        "pool": int(pool.shape[0]),
+        "terms": [int(np.sum(outs == k)) for k in range(n_out)],
+        "path": history,
+    }
     return exps, outs, w, info

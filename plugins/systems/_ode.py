@@ -10,6 +10,7 @@ interpolated in between. ``kind`` selects the vector field:
 * LORENZ_443 x1' = al s (x2 - x1), x2' = al (r u - x2 - u x3), x3' = al (u x2 - b x3)     (eq. 4.43)
   with p = (s, r, b, al).
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -5,6 +5,7 @@
 * ``lorenz-driven`` Lorenz systems driven as in eq. 4.52 (default), 4.46 or 4.43: reliable for every
                     input (Lyapunov functions eq. 4.44 / 4.45 and 4.47 / 4.48).
 """
+
 from __future__ import annotations
 
 from typing import Literal
@@ -25,8 +26,10 @@ class _FlowParams(SystemParams):
     def _multiple(self):
         k = self.sampling_time / self.integration_step
         if abs(k - round(k)) > 1e-9 * max(1.0, k) or round(k) < 1:
-            raise ValueError(f"sampling_time {self.sampling_time} is not a whole multiple of integration_step "
-                             f"{self.integration_step}")
+            raise ValueError(
+                f"sampling_time {self.sampling_time} is not a whole multiple of integration_step "
+                f"{self.integration_step}"
+            )
         return self
 
     @property
@@ -50,15 +53,31 @@ class _Flow(TestSystem):
 
     def step(self, X: np.ndarray, V: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         out = np.empty(X.shape) if out is None else out
-        _ode.step_batch(self.kind, self.p, np.ascontiguousarray(X), np.ascontiguousarray(V), self.params.substeps,
-                        self.params.integration_step, out)
+        _ode.step_batch(
+            self.kind,
+            self.p,
+            np.ascontiguousarray(X),
+            np.ascontiguousarray(V),
+            self.params.substeps,
+            self.params.integration_step,
+            out,
+        )
         return out
 
     def tangent(self, X: np.ndarray, V: np.ndarray, E: np.ndarray):
         out = np.empty(X.shape)
         Eout = np.empty(E.shape)
-        _ode.tangent_batch(self.kind, self.p, np.ascontiguousarray(X), np.ascontiguousarray(V),
-                           np.ascontiguousarray(E), self.params.substeps, self.params.integration_step, out, Eout)
+        _ode.tangent_batch(
+            self.kind,
+            self.p,
+            np.ascontiguousarray(X),
+            np.ascontiguousarray(V),
+            np.ascontiguousarray(E),
+            self.params.substeps,
+            self.params.integration_step,
+            out,
+            Eout,
+        )
         return out, Eout
 
     def state_box(self):
@@ -97,8 +116,10 @@ class Duffing(_Flow):
 
 class LorenzParams(_FlowParams):
     coupling: Literal["4.52", "4.46", "4.43"] = Field(
-        "4.52", description="4.52: x1' = alpha sigma (u - x1); 4.46: x1' = -sigma x1 + u; "
-        "4.43: u replaces x1 in the x2 and x3 equations")
+        "4.52",
+        description="4.52: x1' = alpha sigma (u - x1); 4.46: x1' = -sigma x1 + u; "
+        "4.43: u replaces x1 in the x2 and x3 equations",
+    )
     sigma: float = Field(10.0, gt=0)
     r: float = Field(28.0)
     b: float = Field(2.666, gt=0)

@@ -6,6 +6,7 @@
                     network of eq. 5.28 (sigma 3.07, rho 0.79: a fixed point and a 2-cycle at u = 0);
                     ``sigma`` / ``rho`` rescale C.
 """
+
 from __future__ import annotations
 
 from typing import Optional
@@ -53,8 +54,9 @@ class GaussianMap(TestSystem):
 
 
 class TanhNetworkParams(SystemParams):
-    C: list[list[float]] = Field(default_factory=lambda: [list(r) for r in EQ_5_28],
-                                 description="connection matrix (default: eq. 5.28)")
+    C: list[list[float]] = Field(
+        default_factory=lambda: [list(r) for r in EQ_5_28], description="connection matrix (default: eq. 5.28)"
+    )
     b: Optional[list[float]] = Field(None, description="input weights (default: ones)")
     c0: Optional[list[float]] = Field(None, description="biases (default: zeros)")
     sigma: Optional[float] = Field(None, gt=0, description="rescale C to this largest singular value")
