@@ -8,7 +8,7 @@ start of every range are excluded from fitting and scoring; scores pool over rec
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +44,6 @@ class Dataset:
     input_names: list[str]
     output_names: list[str]
     sampling_time: float
-    noise_std: dict[str, np.ndarray] = field(default_factory=dict)
     transient_at: str = "segment"
 
     def splits(self) -> list[str]:
@@ -401,7 +400,6 @@ def _add_noise(ds: Dataset, noise: dict[str, Any] | None, seed: int) -> None:
         for rec, start, stop in ds.ranges.get(split, []):
             r = ds.recordings[rec]
             r.y[start:stop] += noise["std"] * clean_std[rec] * rng.standard_normal((stop - start, r.y.shape[1]))
-    ds.noise_std = {s: np.asarray(noise["std"]) for s in noise["splits"]}
 
 
 def _check_sizes(ds: Dataset, source: str) -> None:
