@@ -195,3 +195,18 @@ def test_a_spec_names_dataframe_columns(system):
     model = dynmodel.fit({"model": {"family": "narx", "params": {"degree": 2, "lags": LAGS}}, "data": data}, data=frame)
     expected = Narx(degree=2, lags=LAGS).fit(u, y, validation=0.2).predict(ut, yt[:2])
     np.testing.assert_array_equal(model.predict(ut, yt[:2]), expected)
+
+
+def test_arrays_need_neither_pandas_nor_scikit_learn():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, numpy as np\n"
+        "from dynmodel_plugins.narx import Narx\n"
+        "u = np.random.default_rng(0).standard_normal(300); y = np.convolve(u, [0.5, 0.3])[:300]\n"
+        "m = Narx(degree=1).fit(u, y); m.predict(u, y[:2]); m.score(u, y)\n"
+        "print('pandas' in sys.modules, 'sklearn' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False"]
