@@ -13,7 +13,7 @@ On arrays or DataFrames (families are scikit-learn style estimators)::
 
     from dynmodel_plugins.narx import Narx
     narx = Narx(degree=3, lags={"u": [0, 1, 2], "y": [1, 2]}).fit(u, y)   # validation: last 20 %
-    narx.predict(u_new, y_tune=y_new[:narx.model_.warmup]); narx.score(u_new, y_new)
+    narx.predict(u_new, y_tune=y_new[: narx.warmup]); narx.score(u_new, y_new)   # R^2 of the free run
     dynmodel.save(narx, "narx.h5")
     model = dynmodel.fit("my-spec.yaml", data=(u, y))   # a spec's settings on your arrays
 """

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from .columns import is_pandas, like_input, matrix, recordings, select
+from .columns import is_pandas, is_recording_list, like_input, matrix, recordings, select
 from .data.dataset import Dataset
 from .data.preprocess import Preprocessor
 from .errors import DataError
@@ -21,6 +21,13 @@ def _named_columns(frame, names: list[str]):
     if getattr(frame, "ndim", 1) == 2 and all(n in frame.columns for n in names):
         return select(frame, names, "columns")
     return frame
+
+
+def _each_named(signals, names: list[str]):
+    """:func:`_named_columns` of a signal or of every signal of a list of recordings."""
+    if is_recording_list(signals):
+        return [_named_columns(s, names) if is_pandas(s) else s for s in signals]
+    return _named_columns(signals, names) if is_pandas(signals) else signals
 
 
 @dataclass
@@ -110,6 +117,7 @@ class FittedModel:
         of the output's mean): 1 - NMSE / 100 averaged over outputs (eq. 5.48), over every sample after
         the first :attr:`warmup` ones, which the run takes from ``y`` as its tune-in. ``u`` and ``y``
         may be lists of recordings (pooled, as a split is). A free run that diverges scores -inf."""
+        u, y = _each_named(u, self.input_names), _each_named(y, self.output_names)
         recs, _, _ = recordings(u, y, self.input_names, self.output_names, "score")
         warm = self.warmup
         measured, predicted = [], []

@@ -52,6 +52,7 @@ def test_notebook_narx_on_dataframes_saves_loads_and_predicts_identically(tmp_pa
     loaded = dynmodel.load(dynmodel.save(model, tmp_path / "narx.h5"))
     pd.testing.assert_frame_equal(loaded.predict(test, y_tune=test[["position"]].iloc[:2]), pred)
     assert loaded.sampling_time == 0.01
+    assert loaded.score(test, test) == model.score(test[["force"]], test["position"]) > 0.998
     # the same samples as arrays give the same model
     plain = Narx(degree=3, lags={"u": [0, 1, 2], "y": [1, 2]}).fit(u, y, sampling_time=0.01)
     np.testing.assert_array_equal(plain.predict(ut, yt[:2]), pred.to_numpy())
