@@ -52,6 +52,8 @@ class ArraySpec:
     seed: int
     evaluation: EvaluationSpec
     source: str = IN_MEMORY
+    #: splits given as separate recordings ("validation")
+    separate: tuple[str, ...] = ()
 
     @property
     def name(self) -> str:
@@ -65,9 +67,11 @@ class ArraySpec:
         raise DataError("a fit on arrays reads no file", p, "pass the samples to fit()")
 
     def resolved(self) -> dict[str, Any]:
+        data = {"path": IN_MEMORY, **self.data.model_dump(mode="json")}
+        data.update({s: {"path": IN_MEMORY} for s in self.separate})
         return {
             "name": self.name,
-            "data": {"path": IN_MEMORY, **self.data.model_dump(mode="json")},
+            "data": data,
             "model": {"family": self.model.family, "params": self.family.params.model_dump(mode="json")},
             "cost": self.cost,
             "evaluation": self.evaluation.model_dump(mode="json"),
@@ -149,7 +153,7 @@ def fit_arrays(
     except ValidationError as exc:
         raise ParameterError(validation_summary(exc), "fit", "see help(Family.fit)") from None
     sources["data"] = (recs, float(data.sampling_time), ins, outs)
-    spec = ArraySpec(family, data, cost, int(seed), EvaluationSpec())
+    spec = ArraySpec(family, data, cost, int(seed), EvaluationSpec(), separate=tuple(s for s in sources if s != "data"))
     ds = load_dataset(spec, sources)
     with progress_reporter(progress) as report:
         model, _ = engine.fit_family(family, spec, ds, report)
@@ -230,15 +234,17 @@ def fit_spec(spec: Any, data: Any, progress: Progress | bool | None = None) -> F
             loaded[s] = recordings(su, sy, ins, outs, "arrays")
     # the spec's source keys do not apply: the samples are given; separate sources come from data=
     raw_data = {k: v for k, v in raw_data.items() if k not in SOURCE_KEYS or k == "sampling_time"}
-    raw_data.update(path=IN_MEMORY, input=ins, output=outs)
+    st = float(raw_data.get("sampling_time") or 1.0)
+    raw_data.update(path=IN_MEMORY, input=ins, output=outs, sampling_time=st)
     for s in ("validation", "test"):
         raw_data.pop(s, None)
-    st = float(raw_data.get("sampling_time") or 1.0)
     validated = validate_spec({**raw, "data": raw_data}, source, base)
     sources = {k: (r, st, i, o) for k, (r, i, o) in loaded.items()}
     ds = load_dataset(validated, sources)
     with progress_reporter(progress) as report:
         model, _ = engine.fit_dataset(validated, ds, report)
+    kept = ("path", "input", "output", "sampling_time")
+    model.spec["data"] = {k: v for k, v in model.spec["data"].items() if k in kept or k not in SOURCE_KEYS}
     model.spec["data"]["path"] = IN_MEMORY
     for s in ("validation", "test"):
         if s in loaded:
