@@ -211,3 +211,15 @@ def test_arrays_need_neither_pandas_nor_scikit_learn():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"]
+
+
+def test_the_fit_signature_shown_is_the_one_the_array_path_takes():
+    import inspect
+
+    from dynmodel.api import fit_arrays
+
+    shown = inspect.signature(Narx().fit).parameters
+    taken = inspect.signature(fit_arrays).parameters
+    assert [(p.name, p.kind, p.default) for p in shown.values()] == [
+        (p.name, p.kind, p.default) for p in list(taken.values())[1:]
+    ]
