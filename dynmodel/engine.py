@@ -12,7 +12,7 @@ from . import __version__, registry
 from .data import Preprocessor, load_dataset, training_data
 from .data.dataset import Dataset
 from .errors import DynmodelError
-from .family import Progress, no_progress
+from .family import Family, Progress, no_progress
 from .model import FittedModel, Run, evaluate
 
 
@@ -53,12 +53,23 @@ def preprocessor(spec, ds: Dataset) -> Preprocessor:
 
 def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
     """Fit the spec's model on an already loaded dataset and evaluate it on every split."""
-    pre = preprocessor(spec, ds)
-    td = training_data(ds, pre)
     family_cls = registry.family(spec.model.family)
     params = spec.model.params.model_dump(mode="python")
     try:
         family = family_cls(**params)
+    except ValueError as exc:
+        raise DynmodelError(
+            str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
+        ) from exc
+    return fit_family(family, spec, ds, progress)
+
+
+def fit_family(family: Family, spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
+    """Fit a constructed ``family`` on ``ds`` with the spec's preprocessing, cost and seed, and evaluate
+    it on every split (the engine path of ``dynmodel fit`` and of ``Family.fit`` on arrays)."""
+    pre = preprocessor(spec, ds)
+    td = training_data(ds, pre)
+    try:
         family.fit(td, spec.cost, family_rng(spec.seed), progress)
     except ValueError as exc:
         raise DynmodelError(

@@ -53,3 +53,7 @@ class FreeRunDiverged(DynmodelError):
     def __init__(self, what: str, where: str | None = None, fix: str | None = None, sample: int | None = None):
         self.sample = sample
         super().__init__(what, where, fix)
+
+
+class ParameterError(DynmodelError, ValueError):
+    """An unknown or invalid family parameter given in Python (a ValueError, as scikit-learn expects)."""

@@ -8,10 +8,26 @@ from typing import Any
 
 import numpy as np
 
+from .columns import is_pandas, is_recording_list, like_input, matrix, recordings, select
 from .data.dataset import Dataset
 from .data.preprocess import Preprocessor
+from .errors import DataError
 from .family import Family
 from .metrics import METRICS, nmse
+
+
+def _named_columns(frame, names: list[str]):
+    """The model's channels of a DataFrame when it names them all (any order), else the frame as given."""
+    if getattr(frame, "ndim", 1) == 2 and all(n in frame.columns for n in names):
+        return select(frame, names, "columns")
+    return frame
+
+
+def _each_named(signals, names: list[str]):
+    """:func:`_named_columns` of a signal or of every signal of a list of recordings."""
+    if is_recording_list(signals):
+        return [_named_columns(s, names) if is_pandas(s) else s for s in signals]
+    return _named_columns(signals, names) if is_pandas(signals) else signals
 
 
 @dataclass
@@ -34,6 +50,9 @@ class FittedModel:
     train_input_lengths: np.ndarray | None = None
     train_output: np.ndarray | None = None  # measured training outputs (tune-in of external-mode checks)
 
+    def __post_init__(self) -> None:
+        self.family.model_ = self  # the family's predict / score / dynmodel.save work in physical units
+
     @property
     def input_names(self) -> list[str]:
         return self.preprocessor.input_names
@@ -52,6 +71,8 @@ class FittedModel:
         return self.family.warmup
 
     def _inputs(self, u: np.ndarray | Mapping[str, np.ndarray]) -> np.ndarray:
+        if is_pandas(u):
+            u = matrix(_named_columns(u, self.input_names), "input")[0]
         if isinstance(u, Mapping):
             missing = [n for n in self.input_names if n not in u]
             if missing:
@@ -71,21 +92,48 @@ class FittedModel:
     def run(self, u, y_measured: np.ndarray | None = None) -> Run:
         """Free run from the rest state over the whole input; NaN after a divergence."""
         um = self.preprocessor.inputs(self._inputs(u))
-        ym = None if y_measured is None else self.preprocessor.outputs(y_measured)
+        ym = None if y_measured is None else self.preprocessor.outputs(self._outputs(y_measured))
         sim = self.family.simulate(um, ym, self.bounds)
         return Run(self.preprocessor.physical_outputs(sim.y), sim.diverged_at)
 
+    def _outputs(self, y) -> np.ndarray:
+        return matrix(_named_columns(y, self.output_names), "output")[0] if is_pandas(y) else y
+
     def predict(self, u, y_tune: np.ndarray | None = None) -> np.ndarray:
-        """Free-running prediction (n, n_outputs) in physical units.
+        """Free-running prediction (n, n_outputs) in physical units; a DataFrame indexed like ``u``
+        when ``u`` is a pandas DataFrame or Series.
 
         ``y_tune``: measured outputs, at least the first :attr:`warmup` samples (external mode).
         """
-        return self.run(u, y_tune).y
+        return like_input(u, self.run(u, y_tune).y, self.output_names)
 
     def predict_one_step(self, u, y_measured: np.ndarray) -> np.ndarray | None:
         um = self.preprocessor.inputs(self._inputs(u))
-        pred = self.family.predict_one_step(um, self.preprocessor.outputs(y_measured))
-        return None if pred is None else self.preprocessor.physical_outputs(pred)
+        pred = self.family.predict_one_step(um, self.preprocessor.outputs(self._outputs(y_measured)))
+        return None if pred is None else like_input(u, self.preprocessor.physical_outputs(pred), self.output_names)
+
+    def score(self, u, y) -> float:
+        """R^2 of the free run, scikit-learn's regressor score (higher is better, 1 perfect, 0 the level
+        of the output's mean): 1 - NMSE / 100 averaged over outputs (eq. 5.48), over every sample after
+        the first :attr:`warmup` ones, which the run takes from ``y`` as its tune-in. ``u`` and ``y``
+        may be lists of recordings (pooled, as a split is). A free run that diverges scores -inf."""
+        u, y = _each_named(u, self.input_names), _each_named(y, self.output_names)
+        recs, _, _ = recordings(u, y, self.input_names, self.output_names, "score")
+        warm = self.warmup
+        measured, predicted = [], []
+        for rec in recs:
+            if rec.n <= warm:
+                raise DataError(
+                    f"'{rec.name}' has {rec.n} samples, and the model takes its first {warm} as the tune-in",
+                    "score",
+                    "score on longer recordings",
+                )
+            run = self.run(rec.u, rec.y[:warm] if warm else None)
+            if run.diverged_at is not None:
+                return float("-inf")
+            measured.append(rec.y[warm:])
+            predicted.append(run.y[warm:])
+        return float(1.0 - np.mean(nmse(np.concatenate(measured), np.concatenate(predicted))) / 100.0)
 
     @property
     def unstable(self) -> dict[str, Any] | None:

@@ -2,7 +2,7 @@
 
 Layout (``format_version`` 1)::
 
-    /                 attrs: format="dynmodel-model", format_version, family, name, created
+    /                 attrs: format="dynmodel-model", format_version, family, family_params (JSON), name, created
     /spec             string dataset: the fully resolved spec as JSON
     /params/          family arrays as datasets; family attributes as attrs
     /preprocessing/   input/output offsets and scales, divergence bounds; names, delay lines as attrs
@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,7 @@ import numpy as np
 from . import registry
 from .data.preprocess import Preprocessor
 from .errors import ModelFileError
+from .family import Family
 from .model import FittedModel
 
 FORMAT = "dynmodel-model"
@@ -73,10 +75,12 @@ def _json_default(o: Any):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def save(model: FittedModel, path: str | Path) -> Path:
-    """Write ``model`` to ``path`` atomically; returns the path."""
+def save(model: FittedModel | Family, path: str | Path) -> Path:
+    """Write ``model`` (a FittedModel, or a family fitted on arrays) to ``path`` atomically; returns the path."""
     import h5py
 
+    if isinstance(model, Family):
+        model = model._fitted_model()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -86,6 +90,8 @@ def save(model: FittedModel, path: str | Path) -> Path:
             f.attrs["format"] = FORMAT
             f.attrs["format_version"] = FORMAT_VERSION
             f.attrs["family"] = model.family.name
+            # the family's own parameters: a model built in Python has no spec that names them
+            f.attrs["family_params"] = json.dumps(model.family.params.model_dump(mode="json"))
             f.attrs["name"] = str(model.spec.get("name", ""))
             f.attrs["created"] = str(model.provenance.get("created", ""))
             f.create_dataset("spec", data=json.dumps(model.spec, indent=1))
@@ -123,8 +129,11 @@ def save(model: FittedModel, path: str | Path) -> Path:
     return path
 
 
-def load(path: str | Path) -> FittedModel:
-    """Read a model file; corrupt, incomplete or newer files raise ModelFileError."""
+def load(path: str | Path, families: Mapping[str, type[Family]] | None = None) -> FittedModel:
+    """Read a model file; corrupt, incomplete or newer files raise ModelFileError.
+
+    ``families``: family classes by id to use instead of the installed plugins (a family under
+    development, not yet registered)."""
     import h5py
 
     path = Path(path)
@@ -165,7 +174,7 @@ def load(path: str | Path) -> FittedModel:
                     )
             spec = json.loads(f["spec"][()])
             family_name = str(f.attrs["family"])
-            family_cls = registry.families().get(family_name)
+            family_cls = (families if families is not None else registry.families()).get(family_name)
             if family_cls is None:
                 raise ModelFileError(
                     f"the model needs the family plugin '{family_name}', which is not installed",
@@ -174,7 +183,11 @@ def load(path: str | Path) -> FittedModel:
                 )
             arrays = {k: np.asarray(v[()]) for k, v in f["params"].items()}
             attrs = _read_attrs(f["params"])
-            family = family_cls.from_arrays(spec["model"]["params"], arrays, attrs)
+            if "family_params" in f.attrs:
+                params = json.loads(f.attrs["family_params"])
+            else:  # files written before family_params: the spec's model section holds them
+                params = spec["model"]["params"]
+            family = family_cls.from_arrays(params, arrays, attrs)
             pg = f["preprocessing"]
             pre = Preprocessor.from_arrays({k: pg[k][()] for k in pg}, _read_attrs(pg))
             bounds = (np.asarray(pg["bounds_low"][()]), np.asarray(pg["bounds_high"][()]))

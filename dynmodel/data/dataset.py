@@ -8,7 +8,8 @@ start of every range are excluded from fitting and scoring; scores pool over rec
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +45,6 @@ class Dataset:
     input_names: list[str]
     output_names: list[str]
     sampling_time: float
-    noise_std: dict[str, np.ndarray] = field(default_factory=dict)
     transient_at: str = "segment"
 
     def splits(self) -> list[str]:
@@ -314,15 +314,25 @@ def _split_bounds(split: dict[str, Any], n: int) -> dict[str, tuple[int, int]]:
     return bounds
 
 
-def load_dataset(spec) -> Dataset:
-    """Read or generate every recording of ``spec.data`` and lay out the splits."""
+#: recordings of one source with its sampling time, input names and output names
+LoadedSource = tuple[list[Recording], float, list[str], list[str]]
+
+
+def load_dataset(spec, sources: Mapping[str, LoadedSource] | None = None) -> Dataset:
+    """Read or generate every recording of ``spec.data`` and lay out the splits.
+
+    ``sources`` replaces the reading with recordings already in memory (the Python API's arrays):
+    ``"data"`` for the main source, optionally ``"validation"`` / ``"test"`` for separate recordings;
+    the spec's own sources are then not read, everything else (splits, transient, noise) applies."""
     data = spec.data.model_dump(mode="python")
     resolve = spec.resolve_path
-    main_recs, st, in_names, out_names = _load_source(data, resolve, "data")
+    main_recs, st, in_names, out_names = sources["data"] if sources else _load_source(data, resolve, "data")
     recordings: list[Recording] = list(main_recs)
     ranges: dict[str, list[Range]] = {s: [] for s in SPLITS}
 
-    separate = {s: data.get(s) for s in ("validation", "test") if data.get(s)}
+    separate: dict[str, Any] = {s: data.get(s) for s in ("validation", "test") if data.get(s)}
+    if sources:
+        separate = {s: sources[s] for s in ("validation", "test") if s in sources}
     split = data.get("split")
     if split is None:
         split = {"train": 0.6, "validation": 0.2, "test": 0.2}
@@ -356,8 +366,10 @@ def load_dataset(spec) -> Dataset:
                 ranges[s].append((i, a, b))
 
     for s, override in separate.items():
-        src = _merge_source(data, override, s)
-        recs, st_s, ins, outs = _load_source(src, resolve, f"data.{s}")
+        if sources:
+            recs, st_s, ins, outs = override
+        else:
+            recs, st_s, ins, outs = _load_source(_merge_source(data, override, s), resolve, f"data.{s}")
         if len(ins) != len(in_names) or len(outs) != len(out_names):
             raise DataError(
                 f"the separate {s} recording has {len(ins)} inputs / {len(outs)} outputs, "
@@ -401,7 +413,6 @@ def _add_noise(ds: Dataset, noise: dict[str, Any] | None, seed: int) -> None:
         for rec, start, stop in ds.ranges.get(split, []):
             r = ds.recordings[rec]
             r.y[start:stop] += noise["std"] * clean_std[rec] * rng.standard_normal((stop - start, r.y.shape[1]))
-    ds.noise_std = {s: np.asarray(noise["std"]) for s in noise["splits"]}
 
 
 def _check_sizes(ds: Dataset, source: str) -> None:

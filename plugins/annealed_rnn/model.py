@@ -13,18 +13,18 @@ prediction, persistence and the reliability hooks are those of the `esn` family.
 from __future__ import annotations
 
 import threading
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from dynmodel.anneal import Schedule, anneal, run_restarts
 from dynmodel.data.training import TrainingData
-from dynmodel.family import Progress, no_progress
+from dynmodel.family import Family, Progress, constructor_arguments, no_progress
 from dynmodel_plugins.esn.model import EchoStateNetwork
 from dynmodel_plugins.esn.network import build_network
-from dynmodel_plugins.esn.params import EsnParams, Scale
+from dynmodel_plugins.esn.params import EsnParams, Readout, Refinement, Scale
 
-from .params import AnnealedRnnParams
+from .params import AnnealedRnnParams, Moves
 from .search import Evaluator, NetState, grow, make_moves
 
 
@@ -34,6 +34,39 @@ class AnnealedRnn(EchoStateNetwork):
     Params = AnnealedRnnParams
 
     params: AnnealedRnnParams  # type: ignore[assignment]
+
+    def __init__(
+        self,
+        *,
+        size: int = 60,
+        steps: int = 400,
+        mode: Literal["internal", "external"] = "internal",
+        connectivity: float = 0.06,
+        input_connectivity: float = 0.1,
+        bias_connectivity: float = 0.8,
+        input_scale: float = 1.0,
+        bias_scale: float = 1.0,
+        feedback_scale: float = 1.0,
+        initial_singular: float = 0.9,
+        max_singular: float = 0.95,
+        relaxation: float | tuple[float, float] = (0.0, 0.9),
+        relaxation_gain: bool = True,
+        step: float = 1.0,
+        t0: float = 0.1,
+        t_end: float = 1e-4,
+        moves: Moves | dict[str, float] | None = None,
+        grow: bool = False,
+        grow_by: int = 5,
+        max_size: int = 200,
+        patience: int = 100,
+        restarts: int = 1,
+        workers: int = 0,
+        tune_in: int = 100,
+        readout: Readout | dict[str, Any] | None = None,
+        refinement: Refinement | dict[str, Any] | None = None,
+    ) -> None:
+        """Parameters as in ``AnnealedRnnParams`` (the spec's ``model.params``); see the class help."""
+        Family.__init__(self, **constructor_arguments(locals()))
 
     def _initial_state(self, data: TrainingData, rng: np.random.Generator) -> NetState:
         p = self.params

@@ -10,17 +10,17 @@ on free-running error by the predictor-corrector algorithm of section 5.3.2.
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
 
 from dynmodel import kernels, regression
 from dynmodel.data.training import TrainingData
-from dynmodel.family import Family, Progress, Simulation, no_progress
+from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
 
 from .network import Network, build_network, largest_singular_value, spectral_radius
-from .params import EsnParams
+from .params import EsnParams, Readout, Refinement, Scale, Weights
 
 
 def _teacher_feedback(y: np.ndarray) -> np.ndarray:
@@ -38,6 +38,28 @@ class EchoStateNetwork(Family):
     stability_hint = "use cost: mse_inf, the internal mode or a smaller spectral scale"
 
     params: EsnParams
+
+    def __init__(
+        self,
+        *,
+        size: int = 200,
+        mode: Literal["internal", "external"] = "internal",
+        connectivity: float | None = None,
+        input_connectivity: float = 0.1,
+        bias_connectivity: float = 0.8,
+        input_scale: float = 1.0,
+        bias_scale: float = 1.0,
+        feedback_scale: float = 1.0,
+        scale: Scale | dict[str, Any] | None = None,
+        relaxation: float | tuple[float, float] = 0.0,
+        relaxation_gain: bool = False,
+        tune_in: int = 100,
+        readout: Readout | dict[str, Any] | None = None,
+        refinement: Refinement | dict[str, Any] | None = None,
+        weights: Weights | dict[str, Any] | None = None,
+    ) -> None:
+        """Parameters as in ``EsnParams`` (the spec's ``model.params``); see the class help."""
+        super().__init__(**constructor_arguments(locals()))
 
     # ------------------------------------------------------------------ structure
     @property

@@ -10,14 +10,14 @@ the couplings) are adapted by simulated annealing on the validation NMSE.
 from __future__ import annotations
 
 import threading
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from dynmodel import regression
 from dynmodel.anneal import Schedule, anneal, run_restarts
 from dynmodel.data.training import TrainingData
-from dynmodel.family import Family, Progress, Simulation, no_progress
+from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
 
 from .elements import simulate_network
 from .params import LorenzNetParams
@@ -30,6 +30,30 @@ class LorenzNet(Family):
     Params = LorenzNetParams
 
     params: LorenzNetParams
+
+    def __init__(
+        self,
+        *,
+        size: int = 32,
+        strategy: Literal["parallel", "feed-forward"] = "feed-forward",
+        layers: int = 4,
+        extra_links: int = 30,
+        steps: int = 400,
+        coupling_share: float = 0.5,
+        t0: float = 0.1,
+        t_end: float = 1e-4,
+        step: float = 0.5,
+        sigma_range: tuple[float, float] = (0.0, 20.0),
+        r_range: tuple[float, float] = (0.0, 40.0),
+        b_range: tuple[float, float] = (0.0, 10.0),
+        alpha_range: tuple[float, float] = (0.8, 1.2),
+        substeps: int = 4,
+        time_scale: float | None = None,
+        restarts: int = 1,
+        workers: int = 0,
+    ) -> None:
+        """Parameters as in ``LorenzNetParams`` (the spec's ``model.params``); see the class help."""
+        super().__init__(**constructor_arguments(locals()))
 
     def _dt(self, data_sampling_time: float) -> float:
         return float(self.params.time_scale or data_sampling_time)

@@ -12,18 +12,18 @@ can be bounded (eq. 6.25) and reports the sample where it diverges.
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from dynmodel.data.training import TrainingData
-from dynmodel.family import Family, Progress, Simulation, no_progress
+from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
 
 from . import pool as pool_mod
 from .embedding import Embedding, Regressor, build_embedding, exponents_of, parse_term, term_label
 from .estimation import FreeRunProblem, Scored, Structure, diverges, make_structure, refine, split_error
 from .onestep import fixed_weights, fos_structure, make_pool, ridge_candidates
-from .params import NarxFamilyParams
+from .params import FreeRunRefinement, LagRange, NarxFamilyParams
 from .selection import free_run_selection
 
 
@@ -40,6 +40,29 @@ class Narx(Family):
     )
 
     params: NarxFamilyParams
+
+    def __init__(
+        self,
+        *,
+        lags: dict[str, list[int | LagRange | dict[str, int]]] | None = None,
+        degree: int = 2,
+        constant: bool = True,
+        terms: list[str] | dict[str, list[str]] | None = None,
+        selection: Literal["one_step", "free_run"] = "one_step",
+        max_terms: int | None = None,
+        threshold: float | None = None,
+        patience: int | None = 1,
+        drop_unstable: bool = True,
+        weights: Literal["lstsq", "recursion"] = "lstsq",
+        ridge: float | Literal["auto"] | None = None,
+        bounds: float | dict[str, tuple[float | None, float | None]] | None = None,
+        start: Literal["drop", "zeros"] = "drop",
+        initial: Literal["measured", "zeros"] = "measured",
+        max_pool: int = 3000,
+        refinement: FreeRunRefinement | dict[str, Any] | None = None,
+    ) -> None:
+        """Parameters as in ``NarxFamilyParams`` (the spec's ``model.params``); see the class help."""
+        super().__init__(**constructor_arguments(locals()))
 
     # ------------------------------------------------------------------ structure
     @property
