@@ -8,6 +8,7 @@ Python API (mirrors the CLI)::
     dynmodel.save(model, "model.h5")
     model = dynmodel.load("model.h5")
     y = model.predict(u)                  # free run in physical units
+    result = dynmodel.sweep(spec, {"model.params.size": [100, 200], "seed": {"range": [0, 5]}})
 """
 
 from __future__ import annotations
@@ -27,6 +28,14 @@ def fit(spec, progress=None):
     return engine.fit(spec, progress or engine.no_progress)
 
 
+def sweep(spec, grid, executor=None, **options):
+    """Fit ``spec`` at every point of ``grid`` (dotted spec keys -> lists of values) and return a
+    :class:`dynmodel.sweeps.SweepResult` table; see :func:`dynmodel.sweeps.sweep` for the options."""
+    from .sweeps import sweep as run
+
+    return run(spec, grid, executor, **options)
+
+
 def save(model, path):
     from . import store
 
@@ -39,4 +48,4 @@ def load(path):
     return store.load(path)
 
 
-__all__ = ["__version__", "DynmodelError", "load_spec", "validate_spec", "fit", "save", "load"]
+__all__ = ["__version__", "DynmodelError", "load_spec", "validate_spec", "fit", "sweep", "save", "load"]

@@ -14,6 +14,7 @@ from .data.dataset import Dataset
 from .errors import DynmodelError
 from .family import Progress, no_progress
 from .model import FittedModel, Run, evaluate
+from .threads import fit_threads
 
 
 def family_rng(seed: int) -> np.random.Generator:
@@ -52,7 +53,13 @@ def preprocessor(spec, ds: Dataset) -> Preprocessor:
 
 
 def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
-    """Fit the spec's model on an already loaded dataset and evaluate it on every split."""
+    """Fit the spec's model on an already loaded dataset and evaluate it on every split (with one BLAS
+    thread, so that the result does not depend on the machine: see :mod:`dynmodel.threads`)."""
+    with fit_threads():
+        return _fit_dataset(spec, ds, progress)
+
+
+def _fit_dataset(spec, ds: Dataset, progress: Progress) -> tuple[FittedModel, list[Run]]:
     pre = preprocessor(spec, ds)
     td = training_data(ds, pre)
     family_cls = registry.family(spec.model.family)
