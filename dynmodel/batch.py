@@ -332,7 +332,8 @@ def run_specs(
     crashes: dict[str, int] = {}  # deaths of a worker running the point alone
     inflight: dict[Future, tuple[Variant, int]] = {}
     abandon = False
-    fruitless_restarts = 0  # pool rebuilds since a worker last returned a result
+    restarts = 0  # pool rebuilds after a worker died
+    answered = False  # has any worker returned a result yet?
 
     def next_variant() -> tuple[Variant, int] | None:
         nonlocal exhausted
@@ -403,14 +404,13 @@ def run_specs(
                     broken.append((variant, attempts))
             if stop and not wait_running:
                 return
-            if any(f for f in done if not f.cancelled() and f.exception() is None):
-                fruitless_restarts = 0
+            answered = answered or any(not f.cancelled() and f.exception() is None for f in done)
             if not broken or stop:
                 continue
-            fruitless_restarts += 1
-            if fruitless_restarts > max_retries + 1:
+            restarts += 1
+            if not answered and restarts > max_retries + 1:
                 raise DynmodelError(
-                    f"the worker processes of {describe(executor)} die before returning any result",
+                    f"the worker processes of {describe(executor)} died {restarts} times before returning any result",
                     "run_specs",
                     'when calling from a script, put the call under `if __name__ == "__main__":` (worker '
                     "processes are spawned and import the script); check memory, or run with workers=1",
@@ -443,6 +443,7 @@ def run_specs(
                 suspects.add(variant.key)
                 retry.appendleft((variant, attempts))
     finally:
+        abandon = abandon or bool(inflight)  # left early (stopped, or the caller closed the generator)
         for future in inflight:
             future.cancel()
         if own:

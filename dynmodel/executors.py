@@ -226,16 +226,23 @@ class DaskExecutor(Executor):
     def __init__(self, client: Any, cluster: Any = None, address: str = ""):
         self.client = client
         self.cluster = cluster
-        self.address = address or str(getattr(client, "scheduler", {}) and client.scheduler.address)
+        self.address = address or str(client.scheduler.address)
         self._executor = client.get_executor(pure=False)
+        self._threads = (0, -1e9)  # (worker threads, when asked)
 
     @property
     def workers(self) -> int:
-        """Worker threads the cluster has now (it may grow or shrink while a sweep runs)."""
-        try:
-            return int(sum(self.client.nthreads().values()))
-        except Exception:  # a scheduler that went away: the next submit reports it
-            return 0
+        """Worker threads the cluster has (asked at most every 2 s: it may grow or shrink during a sweep)."""
+        import time
+
+        n, when = self._threads
+        if time.monotonic() - when > 2.0:
+            try:
+                n = int(sum(self.client.nthreads().values()))
+            except Exception:  # a scheduler that went away: the next submit reports it
+                n = 0
+            self._threads = (n, time.monotonic())
+        return n
 
     @property
     def slots(self) -> int:

@@ -5,11 +5,13 @@ worker it starts).
 ``sleepy`` fits a static affine map y = W u + w0 by least squares. When ``sleep`` > 0 and the file
 ``marker`` does not exist yet, the fit first writes its process id into ``marker`` and sleeps: the
 test reads the pid and kills that worker mid-point; the retried fit finds the marker and runs at once.
+With ``crash`` every fit kills its own process (kill -9), as a point that always crashes its worker.
 """
 
 from __future__ import annotations
 
 import os
+import signal
 import time
 from pathlib import Path
 from typing import Any
@@ -23,6 +25,7 @@ from dynmodel.family import Family, FamilyParams, Simulation, no_progress
 class SleepyParams(FamilyParams):
     marker: str = Field("", description="file written (with the pid) by the first fit, which then sleeps")
     sleep: float = Field(0.0, ge=0, description="seconds the first fit sleeps")
+    crash: bool = Field(False, description="every fit kills its own process (a point that always crashes)")
 
 
 class Sleepy(Family):
@@ -32,6 +35,8 @@ class Sleepy(Family):
     stochastic = False
 
     def fit(self, data, cost="mse1", rng=None, progress=no_progress):
+        if self.params.crash:
+            os.kill(os.getpid(), signal.SIGKILL)
         marker = Path(self.params.marker) if self.params.marker else None
         if marker is not None and self.params.sleep > 0 and not marker.exists():
             tmp = marker.with_suffix(".tmp")

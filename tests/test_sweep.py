@@ -9,7 +9,6 @@ import os
 import shutil
 import signal
 import socket
-import subprocess
 import sys
 import tempfile
 import threading
@@ -396,26 +395,27 @@ def test_numba_cache_goes_to_a_writable_folder(tmp_path, monkeypatch):
 # ------------------------------------------------------------------------------ parallel: pool and Dask
 
 
-def test_metrics_are_bit_identical_serial_pooled_and_on_dask(tmp_path, dask_cluster):
-    # ridge readouts of 150 states: with 2 BLAS threads instead of 1 their last bits differ, so this also
-    # checks that fits pin BLAS threads (the serial run is a process with 2 BLAS threads)
-    spec = tiny(n=1500, readout={"solver": "ridge"})
-    write_yaml(tmp_path / "spec.yaml", spec)
+def test_metrics_are_bit_identical_serial_pooled_and_on_dask(tmp_path, local_pool, dask_cluster):
+    # ridge readouts of 150 states: with 2 BLAS threads instead of 1 their last bits differ, so the serial
+    # run, made with 2 BLAS threads in this process, also checks that fits pin BLAS to one thread
+    from threadpoolctl import threadpool_limits
+
+    write_yaml(tmp_path / "spec.yaml", tiny(n=1500, readout={"solver": "ridge"}))
     write_yaml(tmp_path / "grid.yaml", {"model.params.size": [20, 150], "seed": {"range": [0, 2]}})
     common = ["sweep", tmp_path / "spec.yaml", "--grid", tmp_path / "grid.yaml", "-q", "--keep", "none"]
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "2"}
-    serial = subprocess.run(
-        [sys.executable, "-c", "from dynmodel.cli import main; main()", *map(str, common), "--workers", "1", "--out", str(tmp_path / "serial")],
-        env=env, capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert serial.returncode == 0, serial.stderr
-    r = run_cli(*common, "--workers", 2, "--out", tmp_path / "pool")
+    with threadpool_limits(limits=2, user_api="blas"):
+        r = run_cli(*common, "--workers", 1, "--out", tmp_path / "serial")
     assert r.exit_code == 0, r.stderr
+    pooled = dynmodel.sweep(
+        tmp_path / "spec.yaml", tmp_path / "grid.yaml", executor=local_pool, out=tmp_path / "pool", keep="best"
+    )
+    assert pooled.counts()["ok"] == 4
     r = run_cli(*common, "--scheduler", dask_cluster.address, "--out", tmp_path / "dask")
     assert r.exit_code == 0, r.stderr
     runs = {name: results(tmp_path / name) for name in ("serial", "pool", "dask")}
     workers = {name: {p["worker"] for p in pts.values()} for name, pts in runs.items()}
     assert len(workers["serial"]) == 1 and all(len(w) >= 1 for w in workers.values())
+    assert workers["pool"].isdisjoint(workers["serial"]) and workers["dask"].isdisjoint(workers["pool"])
     for key, point in runs["serial"].items():
         assert point["status"] == "ok"
         for name in ("pool", "dask"):
@@ -425,10 +425,11 @@ def test_metrics_are_bit_identical_serial_pooled_and_on_dask(tmp_path, dask_clus
         loads = [p["load_seconds"] > 0 for p in pts.values()]
         assert sum(loads) <= len(workers[name]), (name, loads)
     # each point's spec, fitted alone, gives the same numbers
-    r = run_cli("fit", tmp_path / "pool" / "specs" / "p0003.yaml", "--json", tmp_path / "fit.json", "-q")
+    best = pooled.best["point"]
+    r = run_cli("fit", tmp_path / "pool" / "specs" / f"{best}.yaml", "--json", tmp_path / "fit.json", "-q")
     assert r.exit_code == 0, r.stderr
-    assert json.loads((tmp_path / "fit.json").read_text())["metrics"] == runs["serial"]["p0003"]["metrics"]
-    assert (tmp_path / "pool" / "models" / "p0003.h5").exists()  # where the point spec's output points
+    assert json.loads((tmp_path / "fit.json").read_text())["metrics"] == runs["serial"][best]["metrics"]
+    assert dynmodel.load(tmp_path / "pool" / "models" / f"{best}.h5").metrics == runs["serial"][best]["metrics"]
 
 
 def test_pool_workers_run_single_threaded(local_pool):
@@ -451,6 +452,16 @@ def test_a_worker_killed_mid_sweep_loses_no_point(tmp_path, local_pool):
     stalled = result.records["p0000"]
     assert stalled["attempts"] == 2 and not stalled["worker"].endswith(f":{killed}")
     assert local_pool.submit(os.getpid).result(timeout=120) != killed  # the rebuilt pool keeps working
+
+
+@pytest.mark.slow
+def test_a_point_that_always_kills_its_worker_is_recorded_and_spares_the_others(tmp_path, local_pool):
+    raw = sleepy(tmp_path / "unused")
+    grid = {"zip": {"model.params.crash": [False, True, False, False], "data.n": [400, 500, 600, 700]}}
+    result = dynmodel.sweep(raw, grid, executor=local_pool, keep="none")
+    assert [result.records[k]["status"] for k in sorted(result.records)] == ["ok", "error", "ok", "ok"]
+    assert "died 3 times" in result.records["p0001"]["message"]
+    assert local_pool.submit(os.getpid).result(timeout=120) > 0  # the rebuilt pool keeps working
 
 
 def test_a_dask_worker_killed_mid_sweep_loses_no_point(tmp_path, dask_cluster):
@@ -486,33 +497,19 @@ def test_ctrl_c_keeps_finished_points_and_resume_finishes(tmp_path, plugin):
     write_yaml(tmp_path / "spec.yaml", sleepy(marker))
     write_yaml(tmp_path / "grid.yaml", {"zip": {"model.params.sleep": [0, 0, 0, 120], "data.n": [400, 500, 600, 700]}})
     out = tmp_path / "out"
-    args = [
-        "sweep",
-        str(tmp_path / "spec.yaml"),
-        "--grid",
-        str(tmp_path / "grid.yaml"),
-        "--workers",
-        "1",
-        "--out",
-        str(out),
-        "-q",
-    ]
-    proc = subprocess.Popen(
-        [sys.executable, "-c", "from dynmodel.cli import main; main()", *args],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy(),
-    )  # fmt: skip
-    try:
+    args = ("sweep", tmp_path / "spec.yaml", "--grid", tmp_path / "grid.yaml", "--workers", 1, "--out", out, "-q")
+
+    def press_ctrl_c() -> None:  # SIGINT to this process once the last point stalls, as a terminal sends it
         deadline = time.monotonic() + 120
-        while not marker.exists() and time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.05)
-        assert marker.exists(), proc.communicate(timeout=10)
-        proc.send_signal(signal.SIGINT)
-        stdout, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130, stderr
-    assert "interrupted: 3 of 4 points finished" in stderr and "--resume" in stderr and "Traceback" not in stderr
+        while not marker.exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
+
+    with ThreadPoolExecutor(1) as watcher:
+        watcher.submit(press_ctrl_c)
+        r = run_cli(*args)
+    assert r.exit_code == 130, (r.stdout, r.stderr)
+    assert "interrupted: 3 of 4 points finished" in r.stderr and "--resume" in r.stderr
     assert sorted(p.stem for p in (out / "points").iterdir()) == ["p0000", "p0001", "p0002"]
     assert [p["status"] for p in results(out).values()] == ["ok", "ok", "ok", "not run"]
     r = run_cli(*args, "--resume")

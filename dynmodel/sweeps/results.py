@@ -127,12 +127,12 @@ class SweepResult:
         tail = ["seconds", "attempts", "worker", "message", "model"]
         return ["point", "status", *self.keys, *seed, *metric_columns(list(self.records.values())), *tail]
 
-    def _row(self, point: Point) -> dict[str, Any]:
+    def _row(self, point: Point, columns: list[str] | None = None) -> dict[str, Any]:
         r = self.records.get(point.key) or {"status": "not run", "metrics": {}}
         row: dict[str, Any] = {"point": point.key, "status": r.get("status")}
         row.update(point.values)
         row.setdefault("seed", r.get("seed", point.seed))
-        for col in metric_columns(list(self.records.values())):
+        for col in metric_columns(list(self.records.values())) if columns is None else columns:
             split, metric = col.rsplit(".", 1)
             row[col] = ((r.get("metrics") or {}).get(split) or {}).get(metric)
         row.update(
@@ -148,7 +148,8 @@ class SweepResult:
     def rows(self) -> list[dict[str, Any]]:
         by_key = {p.key: p for p in self.points}
         order = self._order or [p.key for p in self.points]
-        return [self._row(by_key[k]) for k in order]
+        columns = metric_columns(list(self.records.values()))
+        return [self._row(by_key[k], columns) for k in order]
 
     def __len__(self) -> int:
         return len(self.points)

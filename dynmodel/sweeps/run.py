@@ -9,6 +9,7 @@ once per distinct data section, preprocessing fitted), the executor (scheduler r
 from __future__ import annotations
 
 import copy
+import json
 import time
 import uuid
 from collections.abc import Callable, Mapping
@@ -85,27 +86,26 @@ def plan(spec: Any, grid: Any) -> Plan:
 
 
 def check_data(the_plan: Plan, points: list[Point], keep_loaded: bool, progress: Progress = no_progress) -> None:
-    """Load the data of every point (once per distinct data section) and fit its preprocessing, so
-    that a missing file or column fails in one line before any fit. ``keep_loaded``: leave the
-    recordings in this process's cache (in-process runs reuse them)."""
+    """Load the data of every point (once per distinct data section, one at a time) and fit its
+    preprocessing, so that a missing file or column fails in one line before any fit. ``keep_loaded``:
+    leave the recordings in this process's cache (in-process runs reuse them)."""
     from .. import engine
-    from ..batch import clear_data_cache
     from ..data import load_dataset
 
-    loaded: dict[str, Any] = {}
-    prepared: set[str] = set()
+    groups: dict[str, list[Any]] = {}
     for p in points:
         spec = validate_spec(p.raw, f"{the_plan.grid.source}: point {p.key} ({p.label()})", the_plan.base_dir)
-        key = data_key(spec)
-        if key not in loaded:
-            progress("data", None, f"checking the data of {p.key}")
-            loaded[key] = cached_dataset(spec)[0] if keep_loaded else load_dataset(spec)
-        pre_key = key + repr(spec.resolved()["data"])
-        if pre_key not in prepared:
-            engine.preprocessor(spec, loaded[key])
-            prepared.add(pre_key)
-    if not keep_loaded:
-        clear_data_cache()
+        groups.setdefault(data_key(spec), []).append((p, spec))
+    for members in groups.values():
+        first, spec = members[0]
+        progress("data", None, f"checking the data of {first.key}")
+        ds = cached_dataset(spec)[0] if keep_loaded else load_dataset(spec)
+        seen: set[str] = set()
+        for _, spec in members:
+            pre = json.dumps(spec.resolved()["data"], sort_keys=True, default=str)
+            if pre not in seen:
+                engine.preprocessor(spec, ds)
+                seen.add(pre)
 
 
 def _manifest(the_plan: Plan, created: str) -> dict[str, Any]:
@@ -131,6 +131,7 @@ class _Recorder:
 
     def __init__(self, the_plan: Plan, folder: SweepFolder | None, keep: Keep, records: dict[str, dict[str, Any]]):
         self.plan = the_plan
+        self.points = {p.key: p for p in the_plan.points}
         self.folder = folder
         self.keep = keep
         self.records = records
@@ -138,31 +139,40 @@ class _Recorder:
         self.warnings: dict[str, int] = {}
         self._last_write = 0.0
         self.sort_key = choose_sort(list(records.values()), the_plan.metrics)
-        self.best_key = self._current_best()
+        self.best_key = self._rank_best()
 
-    def _current_best(self) -> str | None:
-        ok = [r for r in self.records.values() if r.get("status") == "ok"]
-        ranked = sorted((score(r, self.sort_key), r["key"]) for r in ok)
+    def _rank_best(self) -> str | None:
+        ranked = sorted((score(r, self.sort_key), r["key"]) for r in self.records.values() if r.get("status") == "ok")
         ranked = [x for x in ranked if x[0] == x[0]]  # drop NaN
         return ranked[0][1] if ranked else None
 
+    def _beats_best(self, record: dict[str, Any]) -> bool:
+        new = score(record, self.sort_key)
+        if new != new:  # NaN
+            return False
+        if self.best_key is None:
+            return True
+        return (new, record["key"]) < (score(self.records[self.best_key], self.sort_key), self.best_key)
+
     def add(self, result: PointResult, run_id: str) -> None:
-        point = next(p for p in self.plan.points if p.key == result.key)
+        point = self.points[result.key]
         record = result.to_json()
         record.update(values=point.values, finished=_now(), run=run_id, model=None)
         for text in result.warnings:
             self.warnings[text] = self.warnings.get(text, 0) + 1
         self.records[result.key] = record
-        self.sort_key = choose_sort(list(self.records.values()), self.plan.metrics)
+        if result.status == "ok" and "validation" not in record["metrics"] and not self.sort_key.note:
+            self.sort_key = choose_sort(list(self.records.values()), self.plan.metrics)  # falls back to train
+            self.best_key = self._rank_best()
+        better = result.status == "ok" and self._beats_best(record)
         if result.model is not None and self.keep == "all":
             record["model"] = self._store(result.key, result.model)
-        elif result.model is not None and self.keep == "best" and result.status == "ok":
-            previous = self.best_key
-            if self._current_best() == result.key:
-                record["model"] = self._store(result.key, result.model)
-                self.best_key = result.key
-                if previous and previous != result.key:
-                    self._drop(previous)
+        elif result.model is not None and self.keep == "best" and better:
+            record["model"] = self._store(result.key, result.model)
+        if better:
+            previous, self.best_key = self.best_key, result.key
+            if self.keep == "best" and previous and previous != result.key:
+                self._drop(previous)
         if self.folder is not None:
             self.folder.write_record(record)
 
@@ -201,16 +211,14 @@ class _Recorder:
             res.notes.append(self.sort_key.note)
         return res
 
-    def write(self, force: bool = False) -> SweepResult:
-        res = self.result()
+    def write(self, force: bool = False) -> None:
+        """Rewrite results.csv / results.json (at most every RESULTS_INTERVAL seconds unless forced)."""
         now = time.monotonic()
         if self.folder is not None and (force or now - self._last_write >= RESULTS_INTERVAL):
-            import json
-
+            res = self.result()
             write_atomic(self.folder.path / "results.csv", res.to_csv())
             write_atomic(self.folder.path / "results.json", json.dumps(res.to_json(), indent=1, default=str) + "\n")
             self._last_write = now
-        return res
 
 
 def _now() -> str:
@@ -309,7 +317,8 @@ def sweep(
             results.close()
         if own and executor is not None:
             executor.shutdown(wait=not interrupted, cancel_futures=True)
-        result = recorder.write(force=True)
+        recorder.write(force=True)
+        result = recorder.result()
         result.info.update(
             name=the_plan.name,
             spec=the_plan.source,
