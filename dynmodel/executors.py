@@ -24,6 +24,7 @@ import tempfile
 import threading
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -111,6 +112,30 @@ def prepare_worker() -> None:
         _prepared = True
 
 
+def _pool_worker_init() -> None:
+    """A local pool worker: Ctrl-C is the parent's business (it stops the workers), then prepare."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    prepare_worker()
+
+
+@contextmanager
+def _sigint_ignored():
+    """Processes started inside inherit an ignored SIGINT: a Ctrl-C in the terminal then reaches only
+    the parent, which shuts them down cleanly (no tracebacks from every worker)."""
+    import signal
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 # ---------------------------------------------------------------- executors
 
 
@@ -142,7 +167,11 @@ class InProcessExecutor(Executor):
         return future
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        """Also drops the recordings cached in this process for the tasks."""
+        from .batch import clear_data_cache
+
         self._shutdown = True
+        clear_data_cache()
 
     def restart(self) -> None:
         self._shutdown = False
@@ -176,7 +205,7 @@ class LocalPoolExecutor(Executor):
         import multiprocessing
 
         return ProcessPoolExecutor(
-            self.workers, mp_context=multiprocessing.get_context("spawn"), initializer=prepare_worker
+            self.workers, mp_context=multiprocessing.get_context("spawn"), initializer=_pool_worker_init
         )
 
     def submit(self, fn: Callable, /, *args: Any, **kwargs: Any) -> Future:
@@ -318,14 +347,15 @@ def _local_cluster(text: str):
     distributed = _import_distributed()
     import logging
 
-    cluster = distributed.LocalCluster(
-        n_workers=n,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-        env=dict(WORKER_ENV),
-    )
+    with _sigint_ignored():
+        cluster = distributed.LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+            env=dict(WORKER_ENV),
+        )
     return DaskExecutor(distributed.Client(cluster), cluster, cluster.scheduler_address)
 
 

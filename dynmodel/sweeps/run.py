@@ -285,6 +285,7 @@ def sweep(
     counts = {"ok": 0, "diverged": 0, "error": 0}
     interrupted = False
     results = None
+    first = 0.0
     where = describe_safe(executor) if todo else None
     try:
         if todo:
@@ -302,13 +303,14 @@ def sweep(
                         recorder.sort_key.metric
                     )
                     best_text = f"; best {col} {value:.4g} ({best})" if value is not None else ""
-                elapsed = time.monotonic() - t0
-                eta = elapsed / i * (len(todo) - i)
+                now = time.monotonic()
+                first = first or now  # the first point also waited for the workers to start
+                eta = f", about {(now - first) / (i - 1) * (len(todo) - i):.0f} s left" if i > 1 else ""
                 progress(
                     "sweep",
                     i / len(todo),
                     f"{i}/{len(todo)} points ({counts['ok']} ok, {counts['diverged']} diverged, "
-                    f"{counts['error']} errors){best_text}; {elapsed:.0f} s, about {eta:.0f} s left",
+                    f"{counts['error']} errors){best_text}; {now - t0:.0f} s{eta}",
                 )
     except KeyboardInterrupt:
         interrupted = True
