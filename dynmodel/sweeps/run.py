@@ -2,8 +2,8 @@
 through an executor, recording each result as it finishes, and write the tables and the figure.
 
 Order of the checks (each failure is one line and exit 2, before anything is written or fitted):
-spec, grid keys and values, every point's spec, the output folder, the data of every point (loaded
-once per distinct data section, preprocessing fitted), the executor (scheduler reachable).
+spec, grid keys and values, every point's spec, the output folder, the executor (scheduler reachable,
+dask installed), the data of every point (loaded once per distinct data section, preprocessing fitted).
 """
 
 from __future__ import annotations
@@ -283,7 +283,7 @@ def sweep(
     t0 = time.monotonic()
     variants = [Variant(p.key, p.raw, str(the_plan.base_dir), f"{the_plan.source} [{p.key}]") for p in todo]
     counts = {"ok": 0, "diverged": 0, "error": 0}
-    interrupted = False
+    interrupted = clean = False
     results = None
     first = 0.0
     where = describe_safe(executor) if todo else None
@@ -312,13 +312,14 @@ def sweep(
                     f"{i}/{len(todo)} points ({counts['ok']} ok, {counts['diverged']} diverged, "
                     f"{counts['error']} errors){best_text}; {now - t0:.0f} s{eta}",
                 )
+        clean = True
     except KeyboardInterrupt:
         interrupted = True
     finally:
         if results is not None:
             results.close()
         if own and executor is not None:
-            executor.shutdown(wait=not interrupted, cancel_futures=True)
+            executor.shutdown(wait=clean, cancel_futures=True)  # else stop running fits at once
         recorder.write(force=True)
         result = recorder.result()
         result.info.update(
