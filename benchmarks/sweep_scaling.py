@@ -9,7 +9,10 @@ The sweep: the quick-start spec (an external ESN on 10000 samples of the NARX sy
 * ``speedup``: serial warm / warm (target >= 1.7 on 2 cores), and serial cold / cold;
 * ``overhead/task``: (workers x warm wall - sum of the points' in-worker seconds) / points: what the
   executor adds per point (scheduling, transfer of results and models, idle workers at the end);
-* ``round trip``: mean seconds of an empty task submitted and awaited one at a time (the latency floor).
+* ``round trip``: mean seconds of an empty task submitted and awaited one at a time (the latency floor);
+* ``cpu/pt``: CPU seconds of the thread that ran each fit, per point (warm run). On a busy machine wall times
+  inflate but CPU times do not: ``workers x serial cpu/pt / cpu/pt`` bounds the speedup an idle
+  machine would give, before scheduling overhead.
 
 It also checks that all three give bit-identical metrics. Timings depend on the machine's load: the
 target is judged on a quiet machine. Prints figures; asserts nothing.
@@ -52,6 +55,7 @@ def run(name, make, spec, grid, workers):
     finally:
         executor.shutdown()
     busy = sum(r["seconds"] for r in warm.records.values())
+    cpu = sum(r["cpu_seconds"] for r in warm.records.values()) / len(warm.points)
     overhead = (workers * warm_s - busy) / len(warm.points)
     metrics = {k: r["metrics"] for k, r in warm.records.items()}
     same = metrics == {k: r["metrics"] for k, r in cold.records.items()}
@@ -62,6 +66,7 @@ def run(name, make, spec, grid, workers):
         "cold": cold_s,
         "warm": warm_s,
         "busy": busy,
+        "cpu": cpu,
         "overhead": overhead,
         "round_trip": rt,
         "metrics": metrics,
@@ -94,13 +99,14 @@ def main() -> None:
         else:
             rows.append(run("Dask local:2", lambda: make_executor(scheduler="local:2"), spec, grid, 2))
     serial = rows[0]
-    head = f"{'executor':24} {'start s':>8} {'cold s':>8} {'warm s':>8} {'speedup':>8} {'cold sp.':>8} {'overhead/task s':>16} {'round trip s':>13} {'fits ok':>8}"
+    head = f"{'executor':24} {'start s':>8} {'cold s':>8} {'warm s':>8} {'speedup':>8} {'cold sp.':>8} {'overhead/task s':>16} {'round trip s':>13} {'cpu/pt s':>9} {'cpu bound':>9} {'fits ok':>8}"
     print(head)
     print("-" * len(head))
     for r in rows:
         print(
             f"{r['name']:24} {r['start']:8.2f} {r['cold']:8.2f} {r['warm']:8.2f} {serial['warm'] / r['warm']:8.2f} "
-            f"{serial['cold'] / r['cold']:8.2f} {r['overhead']:16.3f} {r['round_trip']:13.4f} {r['ok']:>5}/{n}"
+            f"{serial['cold'] / r['cold']:8.2f} {r['overhead']:16.3f} {r['round_trip']:13.4f} {r['cpu']:9.3f} "
+            f"{r['workers'] * serial['cpu'] / r['cpu']:9.2f} {r['ok']:>5}/{n}"
         )
     same = all(r["metrics"] == serial["metrics"] for r in rows) and all(r["repeatable"] for r in rows)
     print(f"metrics bit-identical across executors and runs: {'yes' if same else 'NO'}")

@@ -142,6 +142,7 @@ class PointResult:
     ``metrics``: split name -> metrics entry (as ``FittedModel.metrics``; empty on error);
     ``seconds``: wall time in the worker (spec, data unless cached, fit, evaluation);
     ``load_seconds``: the part spent loading data (0 when the worker had it cached);
+    ``cpu_seconds``: CPU time of the thread that ran the fit (wall time well above it: a busy machine);
     ``seed``: the spec seed the fit used; ``attempts``: submissions of this point (>1 after a worker
     died); ``worker``: host:pid of the process that ran it; ``warnings``: distinct warning texts."""
 
@@ -151,6 +152,7 @@ class PointResult:
     metrics: dict[str, Any] = field(default_factory=dict)
     seconds: float = 0.0
     load_seconds: float = 0.0
+    cpu_seconds: float = 0.0
     seed: int | None = None
     attempts: int = 1
     worker: str = ""
@@ -166,6 +168,7 @@ class PointResult:
             "metrics": self.metrics,
             "seconds": self.seconds,
             "load_seconds": self.load_seconds,
+            "cpu_seconds": self.cpu_seconds,
             "seed": self.seed,
             "attempts": self.attempts,
             "worker": self.worker,
@@ -227,7 +230,7 @@ def fit_point(variant: Variant, keep_model: bool = False) -> PointResult:
 
     prepare_worker()
     worker = f"{socket.gethostname()}:{os.getpid()}"
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     seed = variant.raw.get("seed") if isinstance(variant.raw.get("seed"), int) else None
     load_seconds = 0.0
     caught: list[warnings.WarningMessage] = []
@@ -259,13 +262,13 @@ def fit_point(variant: Variant, keep_model: bool = False) -> PointResult:
         status,
         message,
         metrics,
-        time.perf_counter() - t0,
-        load_seconds,
-        seed,
-        1,
-        worker,
-        texts,
-        payload,
+        seconds=time.perf_counter() - t0,
+        load_seconds=load_seconds,
+        cpu_seconds=time.thread_time() - c0,
+        seed=seed,
+        worker=worker,
+        warnings=texts,
+        model=payload,
     )
 
 
