@@ -20,7 +20,8 @@ class _Axis:
         positive = self.numeric and min(values) > 0
         self.log = bool(positive and len(set(values)) > 2 and max(values) / min(values) > 20)
         distinct = sorted(set(values)) if self.numeric else []
-        self.ticks = distinct if all(isinstance(v, int) for v in distinct) and len(distinct) <= 12 else None
+        integers = self.numeric and all(isinstance(v, int) for v in distinct)
+        self.ticks = distinct if integers and len(distinct) <= 12 else None
 
     def x(self, value: Any) -> float:
         return float(value) if self.numeric else float(self.labels.index(shown(value, 18)))
