@@ -16,6 +16,7 @@ On arrays or DataFrames (families are scikit-learn style estimators)::
     narx.predict(u_new, y_tune=y_new[: narx.warmup]); narx.score(u_new, y_new)   # R^2 of the free run
     dynmodel.save(narx, "narx.h5")
     model = dynmodel.fit("my-spec.yaml", data=(u, y))   # a spec's settings on your arrays
+    result = dynmodel.sweep(spec, {"model.params.size": [100, 200], "seed": {"range": [0, 5]}})
 """
 
 from __future__ import annotations
@@ -48,6 +49,14 @@ def fit(spec, data=None, progress=None):
         return engine.fit(spec, report)
 
 
+def sweep(spec, grid, executor=None, **options):
+    """Fit ``spec`` at every point of ``grid`` (dotted spec keys -> lists of values) and return a
+    :class:`dynmodel.sweeps.SweepResult` table; see :func:`dynmodel.sweeps.sweep` for the options."""
+    from .sweeps import sweep as run
+
+    return run(spec, grid, executor, **options)
+
+
 def save(model, path):
     """Write a FittedModel, or a family fitted on arrays, to an HDF5 model file (atomically)."""
     from . import store
@@ -61,4 +70,4 @@ def load(path):
     return store.load(path)
 
 
-__all__ = ["__version__", "DynmodelError", "load_spec", "validate_spec", "fit", "save", "load"]
+__all__ = ["__version__", "DynmodelError", "load_spec", "validate_spec", "fit", "sweep", "save", "load"]

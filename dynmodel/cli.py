@@ -1,5 +1,5 @@
-"""Command line: ``dynmodel fit | validate | predict | inspect | reliability-check | diagnose | control | plugins |
-schema | generate``.
+"""Command line: ``dynmodel fit | validate | predict | inspect | reliability-check | diagnose | sweep | control |
+plugins | schema | generate``.
 
 Tables go to stdout, progress to stderr, machine output to ``--json FILE``. A user's mistake
 gets one line on stderr and exit code 2 (1 when a check ran and failed, e.g. a diverging
@@ -619,6 +619,78 @@ def _print_diagnosis(result) -> None:
             + (f" (reduction {100 * red:.1f} %{spread})" if red is not None else "")
             + f"; test MAX {_fmt(g.get('test_max_before'))} -> {_fmt(g.get('test_max_after'))}"
         )
+
+
+# ------------------------------------------------------------------------------ sweep
+@app.command("sweep")
+@handled
+def sweep_cmd(
+    spec: Path = typer.Argument(..., help="YAML spec"),
+    grid: Path = typer.Option(..., "--grid", help="YAML grid: dotted spec keys and their values (docs/sweep.md)"),
+    workers: Optional[int] = typer.Option(
+        None, "--workers", min=1, help="local worker processes (default: one per core; 1 runs in-process)"
+    ),
+    scheduler: Optional[str] = typer.Option(
+        None, "--scheduler", help="Dask cluster: tcp://HOST:PORT, a scheduler JSON file, or local:N (N new workers)"
+    ),
+    out_dir: Optional[Path] = typer.Option(
+        None, "--out", help="output folder (default: <name>-sweep next to the spec)"
+    ),
+    keep: str = typer.Option("best", "--keep", help="models written to the folder: best, all or none"),
+    resume: bool = typer.Option(False, "--resume", help="continue the sweep in --out: run only unfinished points"),
+    json_path: Optional[Path] = typer.Option(None, "--json", help="write the results (as results.json) here too"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+) -> None:
+    """Fit the spec at every point of a grid of settings, in parallel (local processes or Dask), and rank
+    the points by their validation free-run error."""
+    from .progress import Reporter
+    from .sweeps import run as sweeps
+
+    _warnings_to_stderr()
+    folder = out_dir if out_dir is not None else sweeps.default_out(spec)
+    try:
+        with Reporter(enabled=not quiet) as progress:
+            result = sweeps.sweep(
+                spec,
+                grid,
+                out=folder,
+                keep=keep,
+                resume=resume,
+                workers=workers,
+                scheduler=scheduler,
+                progress=progress,
+            )
+    except KeyboardInterrupt as exc:
+        done = getattr(exc, "result", None)
+        counts = (
+            f"{done.counts()['points'] - done.counts()['not_run']} of {done.counts()['points']} points"
+            if done
+            else "no point"
+        )
+        err.print(
+            f"interrupted: {counts} finished, kept in {folder}; run the same command with --resume to finish",
+            markup=False,
+        )
+        raise typer.Exit(130) from None
+    _print_sweep(result, json_path)
+
+
+def _print_sweep(result, json_path: Optional[Path]) -> None:
+    from .sweeps.report import render
+
+    render(result, out)
+    for text, n in result.info.get("warnings", {}).items():
+        err.print(f"warning ({n} point{'s' if n > 1 else ''}): {text}", markup=False)
+    if json_path:
+        _write_json(json_path, result.to_json())
+    if result.best is None:
+        c = result.counts()
+        err.print(
+            f"error: no point finished with a stable free run ({c['diverged']} diverged, {c['error']} errors). "
+            "Fix: see the messages above",
+            markup=False,
+        )
+        raise typer.Exit(1)
 
 
 # ------------------------------------------------------------------------------ control

@@ -14,6 +14,7 @@ from .data.dataset import Dataset
 from .errors import DynmodelError
 from .family import Family, Progress, no_progress
 from .model import FittedModel, Run, evaluate
+from .threads import fit_threads
 
 
 def family_rng(seed: int) -> np.random.Generator:
@@ -66,7 +67,13 @@ def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[Fi
 
 def fit_family(family: Family, spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
     """Fit a constructed ``family`` on ``ds`` with the spec's preprocessing, cost and seed, and evaluate
-    it on every split (the engine path of ``dynmodel fit`` and of ``Family.fit`` on arrays)."""
+    it on every split (the engine path of ``dynmodel fit`` and of ``Family.fit`` on arrays), with one BLAS
+    thread so that the result does not depend on the machine (see :mod:`dynmodel.threads`)."""
+    with fit_threads():
+        return _fit_family(family, spec, ds, progress)
+
+
+def _fit_family(family: Family, spec, ds: Dataset, progress: Progress) -> tuple[FittedModel, list[Run]]:
     pre = preprocessor(spec, ds)
     td = training_data(ds, pre)
     try:

@@ -467,7 +467,7 @@ def format_validation_error(err: ValidationError, source: str) -> SpecError:
         key = str(loc[-1])
         allowed = _allowed_keys(loc) or []
         close = difflib.get_close_matches(key, allowed, n=1)
-        fix = f"did you mean '{close[0]}'?" if close else "remove it"
+        fix = f"did you mean '{close[0]}'?" if close else "remove it."
         if allowed:
             fix += f" Allowed keys here: {', '.join(allowed)}"
         return SpecError(f"unknown key '{key}'", f"{source}: {_dotted(loc[:-1]) or 'top level'}", fix)
@@ -506,9 +506,10 @@ def _construct_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bo
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
-def parse_yaml(text: str, source: str) -> dict[str, Any]:
+def read_yaml(text: str, source: str) -> Any:
+    """Safe YAML with duplicate keys refused; a malformed document raises SpecError naming the line."""
     try:
-        raw = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - safe loader subclass
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - safe loader subclass
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
@@ -516,6 +517,10 @@ def parse_yaml(text: str, source: str) -> dict[str, Any]:
         raise SpecError(
             f"malformed YAML: {problem}", where, "check indentation, colons and brackets on that line"
         ) from None
+
+
+def parse_yaml(text: str, source: str) -> dict[str, Any]:
+    raw = read_yaml(text, source)
     if raw is None:
         raise SpecError("the spec is empty", source, "write at least data: and model: sections")
     if not isinstance(raw, dict):
