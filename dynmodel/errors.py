@@ -53,3 +53,13 @@ class FreeRunDiverged(DynmodelError):
     def __init__(self, what: str, where: str | None = None, fix: str | None = None, sample: int | None = None):
         self.sample = sample
         super().__init__(what, where, fix)
+
+
+class OutputError(DynmodelError):
+    """An output path that cannot be written, or whose file must not be replaced."""
+
+
+class Interrupted(DynmodelError):
+    """The user stopped the command (Ctrl-C)."""
+
+    exit_code = 130
