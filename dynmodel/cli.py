@@ -89,8 +89,7 @@ def handled(fn: Callable) -> Callable:
 
         from .explain import explain, internal_error_line
 
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("default")
+        with warnings.catch_warnings(record=True) as caught:  # the default filters stay in force
             try:
                 result = fn(*args, **kwargs)
             except (typer.Exit, typer.Abort, SystemExit):
@@ -596,7 +595,7 @@ def diagnose_cmd(
     folder = report if report is not None else spec.resolve().parent / f"{safe_name(s.name)}-diagnosis"
     check_outputs(
         [
-            (folder, "report", "--report" if report is not None else "the default report folder"),
+            (folder, "report", "--report"),
             (json_path, "json", "--json"),
         ],
         spec_inputs(s, spec),

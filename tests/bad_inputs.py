@@ -128,6 +128,8 @@ class Case:
     root_skip: bool = False  # cannot be arranged when running as root
     readonly: str | None = None  # a folder to make read-only for the run
     writes: tuple[str, ...] = ()  # files the command may create or replace (and stale ones it removes)
+    slow: bool = False  # a full fit or diagnosis: run by the benchmark and the slow test suite
+    interrupt_after: float | None = None  # Ctrl-C (SIGINT) this many seconds into the annealing (benchmark only)
     notes: list[str] = field(default_factory=list)
 
 
@@ -301,6 +303,31 @@ def _nan_input(folder: Path) -> None:
     d = _data(300, 7)
     d["u"][42] = np.nan
     write_csv(folder / "nan.csv", d)
+
+
+def _gms(folder: Path) -> None:
+    """`dynmodel generate gms` data and a spec with the default NARX (test NMSE about 100 %)."""
+    from dynmodel import registry
+
+    gen = registry.source("gms")
+    u, y = gen.generate(gen.Params(), 3000, np.random.default_rng(0))
+    t = np.arange(3000) * gen.sampling_time(gen.Params())
+    write_csv(folder / "gms.csv", {"t": t, "position": np.ravel(u), "force": np.ravel(y)})
+    spec = {"name": "gms", "data": {"path": "gms.csv", "input": ["position"], "output": ["force"]}}
+    spec["model"] = {"family": "narx"}
+    write_spec(folder, "gms.yaml", spec)
+
+
+def _long_annealing(folder: Path) -> None:
+    spec = base_spec()
+    spec["model"] = {"family": "annealed-rnn", "params": {"size": 10, "steps": 1_000_000, "workers": 1}}
+    write_spec(folder, "anneal.yaml", spec)
+
+
+def _long_name_narx(folder: Path) -> None:
+    spec = {**base_spec(), "name": LONG, "output": None}
+    spec["model"] = {"family": "narx"}
+    write_spec(folder, "s.yaml", spec)
 
 
 def cases() -> list[Case]:
@@ -884,6 +911,36 @@ def cases() -> list[Case]:
         C("control-json-is-the-model", ["control", "m.h5", "--json", "m.h5"], expect="the model the command reads"),
         C("control-plant-missing", ["control", "m.h5", "--plant", "nope.yaml"], expect="not found"),
         C("unknown-command", ["fitt", "spec.yaml"], expect="No such command"),
+        C("diagnose-growing-data", ["diagnose", "s.yaml"], expect="diverges", setup=_with_data("lab.csv", _growing)),
+        # ---- whole runs (benchmark and slow suite)
+        C(
+            "fit-default-narx-on-gms-says-useless",
+            ["fit", "gms.yaml"],
+            code=0,
+            expect="of little use",
+            setup=_gms,
+            writes=("gms.h5",),
+            slow=True,
+        ),
+        C(
+            "diagnose-long-name-runs",
+            ["diagnose", "s.yaml"],
+            code=0,
+            expect="report written to",
+            setup=_long_name_narx,
+            writes=("x*-diagnosis", "x*-diagnosis/*"),
+            slow=True,
+        ),
+        C(
+            "fit-annealing-interrupted-says-so",
+            ["fit", "anneal.yaml", "--out", "a.h5"],
+            code=0,
+            expect="annealing was interrupted",
+            setup=_long_annealing,
+            writes=("a.h5",),
+            slow=True,
+            interrupt_after=6.0,
+        ),
     ]
     ids = [c.id for c in out]
     assert len(ids) == len(set(ids)), "duplicate case ids"

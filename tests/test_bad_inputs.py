@@ -8,7 +8,7 @@ import os
 import pytest
 from bad_inputs import cases, judge, make_models, make_readonly, populate, snapshot
 
-CASES = cases()
+CASES = [c for c in cases() if c.interrupt_after is None]  # Ctrl-C runs: benchmarks/bad_inputs.py
 
 
 @pytest.fixture(scope="module")
@@ -16,7 +16,7 @@ def model_cache(tmp_path_factory):
     return make_models(tmp_path_factory.mktemp("models"))
 
 
-@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+@pytest.mark.parametrize("case", [pytest.param(c, id=c.id, marks=[pytest.mark.slow] if c.slow else []) for c in CASES])
 def test_bad_input(case, cli, tmp_path, model_cache, monkeypatch):
     if case.root_skip and os.geteuid() == 0:
         pytest.skip("root reads every file")
