@@ -305,7 +305,7 @@ def validate(
 def predict(
     model_path: Path = typer.Argument(..., metavar="MODEL", help="model file written by dynmodel fit"),
     input_path: Path = typer.Option(..., "--input", help="file with the model's input columns"),
-    out_path: Optional[Path] = typer.Option(None, "--out", help="CSV for the predictions (default: stdout)"),
+    out_path: Optional[Path] = typer.Option(None, "--out", help="CSV for the predictions (default or '-': stdout)"),
     tune_in: Optional[Path] = typer.Option(None, "--tune-in", help="file with measured output columns for the tune-in"),
     plot: Optional[Path] = typer.Option(
         None, "--plot", help="PNG of the prediction (and the measured output when present)"
@@ -323,6 +323,8 @@ def predict(
     from .errors import DataError
     from .paths import check_outputs
 
+    if out_path is not None and str(out_path) == "-":
+        out_path = None
     model = store.load(model_path)
     inp = prediction.read_inputs(model, input_path, tune_in)
     columns = prediction.header(model, inp.time_name, skip_tune_in)

@@ -57,6 +57,8 @@ def read_inputs(model: FittedModel, input_path: Path, tune_in_path: Path | None 
     the input file); the time column. One-line DataErrors for anything missing."""
     if tune_in_path is not None and not tune_in_path.exists():
         raise DataError("tune-in file not found", str(tune_in_path), "check the --tune-in path")
+    if tune_in_path is not None and not tune_in_path.is_file():
+        raise DataError("is a folder, not a tune-in file", str(tune_in_path), "give --tune-in a data file")
     cols = read_columns(input_path, model.input_names)
     u = np.column_stack([cols[n] for n in model.input_names])
     if not np.isfinite(u).all():

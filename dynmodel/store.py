@@ -195,6 +195,8 @@ def load(path: str | Path) -> FittedModel:
     path = Path(path)
     if not path.exists():
         raise ModelFileError("model file not found", str(path), "check the path (dynmodel fit writes it)")
+    if path.is_dir():
+        raise ModelFileError("is a folder, not a model file", str(path), "give the .h5 file written by `dynmodel fit`")
     try:
         f = h5py.File(path, "r")
     except OSError as exc:

@@ -810,6 +810,26 @@ def cases() -> list[Case]:
             code=0,
             expect="tune-in rows left out",
         ),
+        C(
+            "predict-tune-in-is-a-folder",
+            ["predict", "ext.h5", "--input", "only_u.csv", "--tune-in", "."],
+            expect="is a folder",
+        ),
+        C("predict-model-is-a-folder", ["predict", ".", "--input", "new.csv"], expect="is a folder, not a model file"),
+        C(
+            "predict-plot-in-a-new-folder",
+            ["predict", "m.h5", "--input", "new.csv", "--plot", "plots/p.png"],
+            code=0,
+            expect="plot written to plots/p.png",
+            writes=("plots", "plots/*"),
+        ),
+        C(
+            "fit-plot-in-a-new-folder",
+            ["fit", "spec.yaml", "--out", "m2.h5", "--plot", "plots/run/p.png"],
+            code=0,
+            expect="plot written to plots/run/p.png",
+            writes=("m2.h5", "plots", "plots/*"),
+        ),
         C("predict-seed-like-typo", ["predict", "m.h5", "--input"], expect="--input"),
         # ---- inspect
         C("inspect-model-missing", ["inspect", "nope.h5"], expect="model file not found"),
