@@ -275,14 +275,16 @@ def validate(
     spec: Path = typer.Argument(..., help="YAML spec"),
     resolved: bool = typer.Option(False, "--resolved", help="print the full resolved spec as YAML"),
 ) -> None:
-    """Check a spec and its data without fitting: keys, files, columns, NaN, split sizes."""
+    """Check a spec and its data without fitting: keys, files, columns, values, split sizes, the output path."""
     import yaml
 
     from .data import describe, load_dataset
     from .engine import check_plan
+    from .paths import check_outputs, spec_inputs
     from .spec import load_spec
 
     s = load_spec(spec)
+    check_outputs([(s.output_path(), "model", "output:")], spec_inputs(s, spec))  # what `fit` would refuse
     ds = load_dataset(s)
     check_plan(s, ds)
     out.print(

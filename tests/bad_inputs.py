@@ -656,6 +656,12 @@ def cases() -> list[Case]:
             expect="outside the file",
             setup=_spec_case("s.yaml", base_spec(segments=[[0, 5000]])),
         ),
+        C(
+            "validate-spec-output-is-the-data",
+            ["validate", "s.yaml"],
+            expect="data file the command reads",
+            setup=_spec_case("s.yaml", {**spec(), "output": "run.csv"}),
+        ),
         C("validate-segment-indices", ["validate", "s.yaml"], code=0, expect="run.csv[350:600]", setup=_segments),
         # ---- results a user must be told about
         C(
