@@ -85,7 +85,11 @@ def run_case(case: Case, cache: Path, base: Path, command: list[str]) -> tuple[s
     populate(work, cache)
     if case.setup is not None:
         case.setup(work)
-    undo = make_readonly(work / case.readonly) if case.readonly else None
+    try:
+        undo = make_readonly(work / case.readonly) if case.readonly else None
+    except OSError as exc:
+        shutil.rmtree(work, ignore_errors=True)
+        return f"not run ({exc})", [], 0, 0.0
     before = snapshot(work)
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
     t0 = time.perf_counter()

@@ -1033,11 +1033,28 @@ def damaged_files(before: dict, after: dict) -> list[str]:
 
 
 def make_readonly(folder: Path) -> Callable[[], None]:
-    """Make ``folder`` read-only, also for root (immutable attribute); returns the undo."""
+    """Make ``folder`` read-only, also for root (immutable attribute); returns the undo. OSError when
+    this machine cannot (no chattr, a file system without the attribute)."""
     if os.geteuid() == 0:
         if shutil.which("chattr") is None:
             raise OSError("chattr is needed to make a folder read-only for root")
-        subprocess.run(["chattr", "+i", str(folder)], check=True, capture_output=True)
-        return lambda: subprocess.run(["chattr", "-i", str(folder)], check=False, capture_output=True)
-    folder.chmod(0o555)
-    return lambda: folder.chmod(0o755)
+        done = subprocess.run(["chattr", "+i", str(folder)], capture_output=True)
+        if done.returncode != 0:
+            raise OSError(f"chattr +i failed: {done.stderr.decode(errors='replace').strip()}")
+
+        def undo() -> None:
+            subprocess.run(["chattr", "-i", str(folder)], check=False, capture_output=True)
+
+    else:
+        folder.chmod(0o555)
+
+        def undo() -> None:
+            folder.chmod(0o755)
+
+    try:
+        (folder / ".probe").write_bytes(b"")
+    except OSError:
+        return undo
+    (folder / ".probe").unlink()
+    undo()
+    raise OSError("this file system does not enforce a read-only folder")
