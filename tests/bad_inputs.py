@@ -344,6 +344,18 @@ def cases() -> list[Case]:
             ["fit", "spec.yaml", "--out", "notes.txt", "--force"],
             expect="not a dynmodel model",
         ),
+        C(
+            "fit-out-is-the-data-even-with-force",
+            ["fit", "spec.yaml", "--out", "run.csv", "--force"],
+            expect="data file the command reads",
+        ),
+        C(
+            "fit-force-on-a-previous-plot",
+            ["fit", "spec.yaml", "--out", "m2.h5", "--plot", "old.png", "--force"],
+            code=0,
+            setup=lambda f: _png(f / "old.png"),
+            writes=("m2.h5", "old.png"),
+        ),
         C("fit-out-is-a-folder", ["fit", "spec.yaml", "--out", "."], expect="is a folder"),
         C("fit-out-in-proc", ["fit", "spec.yaml", "--out", "/proc/m.h5"], expect="cannot create files in '/proc'"),
         C("fit-out-in-sys", ["fit", "spec.yaml", "--out", "/sys/m.h5"], expect="cannot create files in '/sys'"),
@@ -835,6 +847,23 @@ def cases() -> list[Case]:
             code=0,
             expect="plot written to plots/run/p.png",
             writes=("m2.h5", "plots", "plots/*"),
+        ),
+        C(
+            "predict-force-still-spares-the-input",
+            ["predict", "m.h5", "--input", "new.csv", "--out", "new.csv", "--force"],
+            expect="input file the command reads",
+        ),
+        C(
+            "predict-force-replaces-what-it-names",
+            ["predict", "m.h5", "--input", "new.csv", "--out", "notes.txt", "--force"],
+            code=0,
+            writes=("notes.txt",),
+        ),
+        C(
+            "predict-skip-tune-in-to-stdout",
+            ["predict", "ext.h5", "--input", "new.csv", "--skip-tune-in"],
+            code=0,
+            expect="t,y",
         ),
         C("predict-seed-like-typo", ["predict", "m.h5", "--input"], expect="--input"),
         # ---- inspect
