@@ -52,16 +52,23 @@ def preprocessor(spec, ds: Dataset) -> Preprocessor:
         raise DynmodelError(str(exc), f"{spec.source}: data", "correct data.derived_inputs") from None
 
 
+def check_plan(spec, ds: Dataset):
+    """The spec's family, unfitted, after checking it can be fitted and scored on ``ds`` (its
+    tune-in leaves scored samples in every split); one-line errors otherwise (``validate`` uses it)."""
+    from .data.checks import check_warmup
+
+    family_cls = registry.family(spec.model.family)
+    try:
+        family = family_cls(**spec.model.params.model_dump(mode="python"))
+    except ValueError as exc:
+        raise DynmodelError(str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params") from None
+    check_warmup(ds, family.warmup, spec.source)
+    return family
+
+
 def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
     """Fit the spec's model on an already loaded dataset and evaluate it on every split."""
-    family_cls = registry.family(spec.model.family)
-    params = spec.model.params.model_dump(mode="python")
-    try:
-        family = family_cls(**params)
-    except ValueError as exc:
-        raise DynmodelError(
-            str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
-        ) from exc
+    family = check_plan(spec, ds)
     return fit_family(family, spec, ds, progress)
 
 

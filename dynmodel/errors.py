@@ -57,3 +57,13 @@ class FreeRunDiverged(DynmodelError):
 
 class ParameterError(DynmodelError, ValueError):
     """An unknown or invalid family parameter given in Python (a ValueError, as scikit-learn expects)."""
+
+
+class OutputError(DynmodelError):
+    """An output path that cannot be written, or whose file must not be replaced."""
+
+
+class Interrupted(DynmodelError):
+    """The user stopped the command (Ctrl-C)."""
+
+    exit_code = 130

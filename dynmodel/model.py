@@ -38,6 +38,30 @@ class Run:
     diverged_at: int | None
 
 
+def band_check(
+    y: np.ndarray, bounds: tuple[np.ndarray, np.ndarray] | None, diverged_at: int | None = None, start: int = 0
+) -> tuple[np.ndarray, int | None]:
+    """The model-space run ``y`` with NaN from the first sample at or after ``start`` (the end of a
+    tune-in, whose outputs are no prediction) outside ``bounds`` (lo, hi) or non-finite, and that
+    sample (the earlier of it and ``diverged_at``); None when the run stays inside."""
+    if y.ndim == 1:
+        y = y[:, None]
+    bad = ~np.isfinite(y)
+    if bounds is not None:
+        lo, hi = (np.asarray(b, dtype=np.float64) for b in bounds)
+        with np.errstate(invalid="ignore"):
+            bad |= (y < lo) | (y > hi)
+    bad[:start] = False
+    rows = np.flatnonzero(bad.any(axis=1))
+    first = int(rows[0]) if rows.size else None
+    if diverged_at is not None and (first is None or diverged_at < first):
+        first = int(diverged_at)
+    if first is not None:
+        y = y.copy()
+        y[first:] = np.nan
+    return y, first
+
+
 @dataclass
 class FittedModel:
     family: Family
@@ -70,6 +94,17 @@ class FittedModel:
         """Measured output samples the model needs at the start of a run (tune-in)."""
         return self.family.warmup
 
+    @property
+    def washout(self) -> int:
+        """Samples after a recording's start that training and scoring left out (the spec's
+        ``data.transient``): a network's state is still forgetting its rest state there, so its
+        output is no prediction and is not held to the divergence band."""
+        data = self.spec.get("data") or {}
+        try:
+            return max(int(data.get("transient") or 0), 0)
+        except (TypeError, ValueError):
+            return 0
+
     def _inputs(self, u: np.ndarray | Mapping[str, np.ndarray]) -> np.ndarray:
         if is_pandas(u):
             u = matrix(_named_columns(u, self.input_names), "input")[0]
@@ -90,11 +125,18 @@ class FittedModel:
         return u
 
     def run(self, u, y_measured: np.ndarray | None = None) -> Run:
-        """Free run from the rest state over the whole input; NaN after a divergence."""
+        """Free run from the rest state over the whole input; NaN after a divergence.
+
+        Every family's run is held to the divergence band here, whether or not the family feeds
+        its output back: a run that leaves the training output range widened by
+        ``DIVERGENCE_MARGIN`` range widths (or turns non-finite) after the tune-in and the
+        :attr:`washout` diverged at that sample."""
         um = self.preprocessor.inputs(self._inputs(u))
         ym = None if y_measured is None else self.preprocessor.outputs(self._outputs(y_measured))
         sim = self.family.simulate(um, ym, self.bounds)
-        return Run(self.preprocessor.physical_outputs(sim.y), sim.diverged_at)
+        start = max(self.warmup if y_measured is not None else 0, self.washout)
+        y, diverged_at = band_check(np.asarray(sim.y, dtype=np.float64), self.bounds, sim.diverged_at, start)
+        return Run(self.preprocessor.physical_outputs(y), diverged_at)
 
     def _outputs(self, y) -> np.ndarray:
         return matrix(_named_columns(y, self.output_names), "output")[0] if is_pandas(y) else y
@@ -160,7 +202,7 @@ def evaluate(
         rows = ds.scored(split, warmup=warm)
         entry: dict[str, Any] = {"samples": int(sum(b - a for _, a, b in rows))}
         unstable = None
-        for rec, a, b in rows:
+        for rec, _a, b in rows:
             k = runs[rec].diverged_at
             if k is not None and k < b:
                 unstable = {"recording": ds.recordings[rec].name, "sample": int(k), "time": float(k * st)}

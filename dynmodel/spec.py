@@ -575,6 +575,17 @@ def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | 
     return spec
 
 
+def read_spec_text(p: Path) -> str:
+    """The text of a spec file: UTF-8 (with or without BOM), UTF-16 or Latin-1; one-line errors."""
+    from .errors import DataError
+    from .textfiles import read_text_file
+
+    try:
+        return read_text_file(p, "spec")
+    except DataError as exc:
+        raise SpecError(exc.what, exc.where, exc.fix) from None
+
+
 def load_spec(path: str | Path):
     """Load and validate a YAML spec file. Relative paths inside resolve against its folder."""
     p = Path(path)
@@ -582,11 +593,7 @@ def load_spec(path: str | Path):
         raise SpecError("spec file not found", str(p), "check the path")
     if p.is_dir():
         raise SpecError("is a folder, not a spec file", str(p), "pass the YAML file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SpecError(f"cannot read the spec ({exc})", str(p), "check the file") from None
-    raw = parse_yaml(text, str(p))
+    raw = parse_yaml(read_spec_text(p), str(p))
     raw.setdefault("name", p.stem)
     return validate_spec(raw, str(p), p.parent)
 

@@ -19,6 +19,7 @@ from .. import registry
 from ..errors import DataError, SpecError
 from ..spec import SPLITS
 from . import resample
+from .checks import check_signals
 from .readers import read_columns
 
 Range = tuple[int, int, int]  # (recording index, start, stop)
@@ -31,10 +32,20 @@ class Recording:
     name: str
     u: np.ndarray  # (n, n_inputs)
     y: np.ndarray  # (n, n_outputs)
+    #: first sample of this recording in its file (a segment of a longer file starts later)
+    offset: int = 0
+    #: the source's own column names (a separate test file may name its columns differently)
+    input_columns: list[str] | None = None
+    output_columns: list[str] | None = None
 
     @property
     def n(self) -> int:
         return self.u.shape[0]
+
+    def span(self, start: int, stop: int) -> str:
+        """``file[start:stop]`` with sample indices of the file (not of the segment)."""
+        base = self.name.rsplit("[", 1)[0] if self.offset or self.name.endswith("]") else self.name
+        return f"{base}[{self.offset + start}:{self.offset + stop}]"
 
 
 @dataclass
@@ -95,7 +106,7 @@ class Dataset:
         lo, hi = train.min(axis=0), train.max(axis=0)
         width = np.maximum(hi - lo, np.finfo(float).tiny)
         found = []
-        for split in ("validation", "test"):
+        for split in [s for s in self.ranges if s != "train"]:
             for j, name in enumerate(self.input_names):
                 worst = (0.0, -1, -1)
                 for rec, start, stop in self.ranges.get(split, []):
@@ -107,10 +118,11 @@ class Dataset:
                     if excess[k] > worst[0]:
                         worst = (float(excess[k]), rec, start + k)
                 if worst[0] > margin:
+                    columns = self.recordings[worst[1]].input_columns
                     found.append(
                         {
                             "split": split,
-                            "input": name,
+                            "input": columns[j] if columns else name,
                             "excess": worst[0],
                             "recording": self.recordings[worst[1]].name,
                             "sample": worst[2],
@@ -173,15 +185,24 @@ def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], flo
             data, step = resample.uniform(t, data, src.get("resample"), str(path))
             steps.append((step, str(path)))
         segments = src.get("segments") or [(0, data.shape[0])]
-        for k, (a, b) in enumerate(segments):
+        for a, b in segments:
             if not 0 <= a < b <= data.shape[0]:
                 raise DataError(
                     f"segment [{a}, {b}] lies outside the file's {data.shape[0]} samples",
                     str(path),
                     "correct data.segments",
                 )
-            name = path.name if len(segments) == 1 else f"{path.name}[{a}:{b}]"
-            recs.append(Recording(name, data[a:b, :n_in].copy(), data[a:b, n_in:].copy()))
+            name = path.name if len(segments) == 1 and (a, b) == (0, data.shape[0]) else f"{path.name}[{a}:{b}]"
+            recs.append(
+                Recording(
+                    name,
+                    data[a:b, :n_in].copy(),
+                    data[a:b, n_in:].copy(),
+                    offset=int(a),
+                    input_columns=names[:n_in],
+                    output_columns=names[n_in:],
+                )
+            )
     if not steps:
         return recs, None
     first, where = steps[0]
@@ -399,6 +420,7 @@ def load_dataset(spec, sources: Mapping[str, LoadedSource] | None = None) -> Dat
     )
     _add_noise(ds, data.get("noise"), spec.seed)
     _check_sizes(ds, spec.source)
+    check_signals(ds, spec.source)
     return ds
 
 
@@ -442,7 +464,7 @@ def describe(ds: Dataset) -> list[dict[str, Any]]:
         rows.append(
             {
                 "split": split,
-                "segments": [f"{ds.recordings[r].name}[{a}:{b}]" for r, a, b in ds.ranges[split]],
+                "segments": [ds.recordings[r].span(a, b) for r, a, b in ds.ranges[split]],
                 "samples": sum(b - a for _, a, b in ds.ranges[split]),
                 "scored": ds.n_scored(split),
             }

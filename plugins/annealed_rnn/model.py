@@ -13,6 +13,7 @@ prediction, persistence and the reliability hooks are those of the `esn` family.
 from __future__ import annotations
 
 import threading
+import warnings
 from typing import Any, Literal
 
 import numpy as np
@@ -171,6 +172,12 @@ class AnnealedRnn(EchoStateNetwork):
             "best_run": k_best,
             "interrupted": any(r[3] for r in runs),
         }
+        if self.search_["interrupted"]:
+            warnings.warn(
+                f"the annealing was interrupted (Ctrl-C): the model keeps the best network found so far "
+                f"(validation NMSE {100 * score:.4g} %), not the result of the full schedule",
+                stacklevel=2,
+            )
         self.network_ = best.network(p.relaxation_gain)
         return self._fit_readout(data, cost, progress)
 

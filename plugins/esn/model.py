@@ -35,7 +35,15 @@ class EchoStateNetwork(Family):
     name = "esn"
     description = "echo state network, internal or external approach (thesis 5.2.3, 5.3.2)"
     Params = EsnParams
-    stability_hint = "use cost: mse_inf, the internal mode or a smaller spectral scale"
+
+    @property  # type: ignore[override]
+    def stability_hint(self) -> str:
+        if self.external:
+            return "use cost: mse_inf, the internal mode or a smaller spectral scale"
+        return (
+            "the readout extrapolates (an internal network has no feedback to blow up): use a ridge readout, "
+            "fewer elements, or inputs within the training range"
+        )
 
     params: EsnParams
 

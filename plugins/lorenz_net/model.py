@@ -10,6 +10,7 @@ the couplings) are adapted by simulated annealing on the validation NMSE.
 from __future__ import annotations
 
 import threading
+import warnings
 from typing import Any, Literal
 
 import numpy as np
@@ -114,6 +115,12 @@ class LorenzNet(Family):
         best = int(np.argmin([r[1] for r in runs]))
         state = runs[best][0]
         self.search_ = {"restarts": [r[2] for r in runs], "best_run": best}
+        if any(r[2].get("interrupted") for r in runs):
+            warnings.warn(
+                f"the annealing was interrupted (Ctrl-C): the model keeps the best network found so far "
+                f"(validation NMSE {100 * runs[best][1]:.4g} %), not the result of the full schedule",
+                stacklevel=2,
+            )
         if not np.isfinite(runs[best][1]):
             raise ValueError(
                 "every Lorenz network diverged in the RK4 integration; raise `substeps` or lower the parameter ranges"
