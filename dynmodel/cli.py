@@ -706,14 +706,16 @@ def sweep_cmd(
     resume: bool = typer.Option(False, "--resume", help="continue the sweep in --out: run only unfinished points"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write the results (as results.json) here too"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    force: bool = _FORCE,
 ) -> None:
     """Fit the spec at every point of a grid of settings, in parallel (local processes or Dask), and rank
     the points by their validation free-run error."""
+    from .paths import check_outputs
     from .progress import Reporter
     from .sweeps import run as sweeps
 
-    _warnings_to_stderr()
     folder = out_dir if out_dir is not None else sweeps.default_out(spec)
+    check_outputs([(json_path, "json", "--json")], {"spec": [spec], "grid": [grid]}, force)
     try:
         with Reporter(enabled=not quiet) as progress:
             result = sweeps.sweep(
