@@ -310,3 +310,21 @@ def test_a_long_fit_never_holds_the_state_matrix(monkeypatch):
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     assert peak < 20e6, f"{peak / 1e6:.0f} MB"
+
+
+def test_lorenz_annealing_objective_without_the_cache_equals_the_cached_one(small_chunks, monkeypatch):
+    """Recordings too long to cache: every candidate integrated again, error from the moments."""
+    import dynmodel_plugins.lorenz_net.search as search
+
+    data = _data()
+    p = LorenzNetParams(size=6, layers=2, extra_links=3)
+    cached = search.Evaluator(data, p, 0.1)
+    monkeypatch.setattr(search, "CACHE_BYTES", 0)
+    streamed = search.Evaluator(data, p, 0.1)
+    assert cached.cache and not streamed.cache
+    rng = np.random.default_rng(6)
+    for _ in range(3):
+        st = initial_state(p, 1, rng)
+        ref = cached.score(st)
+        assert 0 < ref < 1
+        assert streamed.score(st) == pytest.approx(ref, rel=1e-9, abs=0)
