@@ -46,11 +46,18 @@ class Moments:
         self.mean = np.zeros(p)
         self.R = np.zeros((p, p), order="F")
         self.finite = True
-        self._work: np.ndarray | None = None
+        self._work: dict[int, np.ndarray] = {}  # LAPACK input buffers by chunk length, reused
 
     @property
     def width(self) -> int:
         return self.n_features + self.n_targets
+
+    def reset(self) -> None:
+        """Forget every row (the buffers are kept for the next accumulation)."""
+        self.n = 0
+        self.mean[:] = 0.0
+        self.R[:] = 0.0
+        self.finite = True
 
     def add(self, F: np.ndarray, Y: np.ndarray) -> None:
         """Merge the rows of ``F`` (c, K) and ``Y`` (c, q)."""
@@ -58,12 +65,11 @@ class Moments:
         if c == 0:
             return
         K, p = self.n_features, self.width
-        if self._work is None or self._work.shape[0] != c + 1:
-            work = np.empty((c + 1, p), order="F")
-            if self._work is None or c + 1 > self._work.shape[0]:
-                self._work = work  # keep the buffer of the longest (usual) chunk
-        else:
-            work = self._work
+        work = self._work.get(c)
+        if work is None:
+            if len(self._work) >= 4:  # blocks of many lengths: keep the memory bounded
+                self._work.clear()
+            work = self._work[c] = np.empty((c + 1, p), order="F")
         mean_b = np.empty(p)
         mean_b[:K] = F.mean(axis=0)
         mean_b[K:] = Y.mean(axis=0)
@@ -147,6 +153,13 @@ class GramMoments:
         self.finite = True
         self._work: np.ndarray | None = None
 
+    def reset(self) -> None:
+        """Forget every row (the buffers are kept for the next accumulation)."""
+        self.n = 0
+        self.mean[:] = 0.0
+        self.G[:] = 0.0
+        self.finite = True
+
     def add(self, F: np.ndarray, Y: np.ndarray) -> None:
         c = F.shape[0]
         if c == 0:
@@ -206,11 +219,19 @@ def accumulate(
     splits: tuple[str, ...] = ("train", "validation"),
     rows: int | None = None,
     moments: type[Moments] | type[GramMoments] | None = None,
+    into: dict | None = None,
 ) -> dict[str, Moments]:
     """Moments of ``[features, y]`` per split (those of ``splits`` the data has), with the features
-    produced block by block: memory of one block whatever the length of the recordings."""
-    cls = moments or Moments
-    out = {name: cls(n_features, data.n_outputs) for name in splits if data.has(name)}
+    produced block by block: memory of one block whatever the length of the recordings. ``into``:
+    moments (per split) to reset and fill instead of new ones of class ``moments``, so that a
+    caller evaluating many networks reuses their buffers."""
+    if into is not None:
+        out = {name: into[name] for name in splits if data.has(name)}
+        for m in out.values():
+            m.reset()
+    else:
+        cls = moments or Moments
+        out = {name: cls(n_features, data.n_outputs) for name in splits if data.has(name)}
     rows = rows or chunk_rows(n_features + data.n_outputs)
     for k, series in enumerate(data.series):
         for start, stop, label in split_blocks(data, k, rows, tuple(out)):

@@ -177,6 +177,8 @@ class Evaluator:
         self._runs = RunBuffers(data) if self.external else None
         self._no_states = np.empty((0, 0))
         self._rest = np.zeros(0)
+        self._gram = GramMoments(0, data.n_outputs)
+        self._sqrt: dict[str, Moments] = {}
         self.evaluations = 0
 
     def _width(self, state: Network) -> int:
@@ -191,9 +193,12 @@ class Evaluator:
             self._outputs = np.empty((self._rows, self.data.n_outputs))
             self._no_states = np.empty((0, state.size))
             self._rest = np.zeros(state.size)
+            self._gram = GramMoments(K, self.data.n_outputs)
+            self._sqrt = {name: Moments(K, self.data.n_outputs) for name in ("train", "validation")}
 
-    def _moments(self, state: Network, args: tuple, splits: tuple[str, ...], cls) -> dict:
-        """Moments of the teacher-forced (or internal-mode) readout rows of ``splits``."""
+    def _moments(self, state: Network, args: tuple, splits: tuple[str, ...], into: dict) -> dict:
+        """Moments of the teacher-forced (or internal-mode) readout rows of ``splits``, into the
+        evaluator's reused moments."""
         x = self._rest.copy()
         direct = self.p.readout.direct
 
@@ -204,14 +209,15 @@ class Evaluator:
             kernels.drive_chunk(*args, self.drives[k][start:stop], x, direct, F)
             return F
 
-        return accumulate(self.data, produce, self._width(state), splits, self._rows, cls)
+        return accumulate(self.data, produce, self._width(state), splits, self._rows, into=into)
 
     def _training_gram(self, state: Network, args: tuple) -> tuple[GramMoments, list]:
         """Centred Gram moments of the training rows, the network driven up to the last of them in
         each series. Also returns, per series, where the validation pass resumes: the states at the
         starts of the validation blocks driven already and the state at the end of the drive."""
         data, direct = self.data, self.p.readout.direct
-        gram = GramMoments(self._width(state), data.n_outputs)
+        gram = self._gram
+        gram.reset()
         x = self._rest.copy()
         resume = []
         for k, series in enumerate(data.series):
@@ -241,7 +247,7 @@ class Evaluator:
         """The weights, and what scores the validation rows: their moments (FOS) or where the
         validation pass resumes (least squares)."""
         if self.fos:
-            m = self._moments(state, args, ("train", "validation"), Moments)
+            m = self._moments(state, args, ("train", "validation"), self._sqrt)
             if not (m["train"].finite and m["validation"].finite):
                 return None, None
             p = self.p.readout
@@ -250,7 +256,7 @@ class Evaluator:
             )
             return np.vstack([fit.coef, fit.intercept]), m["validation"]
         if self.external:  # the free run scores: drive up to the last training row only
-            g = self._moments(state, args, ("train",), GramMoments)["train"]
+            g = self._moments(state, args, ("train",), {"train": self._gram})["train"]
             resume = None
         else:
             g, resume = self._training_gram(state, args)

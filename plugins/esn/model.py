@@ -178,6 +178,7 @@ class EchoStateNetwork(Family):
         over ``ramp`` iterations (error propagation, thesis 6.3.2)."""
         r = self.params.refinement
         buffers = RunBuffers(data)  # outputs of every run, reused
+        reused: dict[str, Moments] = {}
         best_vec = self._readout_vector()
         best_err = self._free_run_error(data, buffers)
         unstable = not np.isfinite(best_err)
@@ -188,12 +189,20 @@ class EchoStateNetwork(Family):
             if unstable:
                 mix = max(0.0, 1.0 - it / r.ramp)
             moments = free_run_moments(
-                self.network_, data, mix, self.params.readout.direct, self._splits(data), buffers, **self._run_args()
+                self.network_,
+                data,
+                mix,
+                self.params.readout.direct,
+                self._splits(data),
+                buffers,
+                **self._run_args(),
+                into=reused or None,
             )
             if moments is None:  # the run diverged
                 if mix == 0.0 and not unstable:
                     break
                 continue
+            reused = moments
             current = self._readout_vector()
             self._set_readout(self._solve_readout(moments["train"], moments.get("validation")))
             self._set_readout_vector((1.0 - r.alpha) * current + r.alpha * self._readout_vector())

@@ -74,10 +74,12 @@ def free_run_moments(
     y_rest: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
+    into: dict[str, Moments] | None = None,
 ) -> dict[str, Moments] | None:
     """Moments of the readout rows ``[x_t, u_t, f_t (direct)], y_t`` of the external-mode run with
     feedback ``f_t`` (``mix``: share of the measured output, :func:`dynmodel.kernels.free_run`);
-    None when a run leaves [lo, hi]."""
+    None when a run leaves [lo, hi]. ``into``: moments to reset and reuse (see
+    :func:`dynmodel.moments.accumulate`)."""
     args = net.kernel_args()
     m, n_in, q = net.size, data.n_inputs, data.n_outputs
     K = m + (n_in + q if direct else 0)
@@ -102,7 +104,7 @@ def free_run_moments(
         return F
 
     try:
-        return accumulate(data, produce, K, splits, rows)
+        return accumulate(data, produce, K, splits, rows, into=into)
     except _Diverged:
         return None
 
