@@ -22,11 +22,11 @@ from dynmodel.anneal import Schedule, anneal, run_restarts
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Family, Progress, constructor_arguments, no_progress
 from dynmodel_plugins.esn.model import EchoStateNetwork
-from dynmodel_plugins.esn.network import build_network
+from dynmodel_plugins.esn.network import Network, build_network
 from dynmodel_plugins.esn.params import EsnParams, Readout, Refinement, Scale
 
 from .params import AnnealedRnnParams, Moves
-from .search import Evaluator, NetState, grow, make_moves
+from .search import Evaluator, grow, make_moves
 
 
 class AnnealedRnn(EchoStateNetwork):
@@ -69,7 +69,7 @@ class AnnealedRnn(EchoStateNetwork):
         """Parameters as in ``AnnealedRnnParams`` (the spec's ``model.params``); see the class help."""
         Family.__init__(self, **constructor_arguments(locals()))
 
-    def _initial_state(self, data: TrainingData, rng: np.random.Generator) -> NetState:
+    def _initial_state(self, data: TrainingData, rng: np.random.Generator) -> Network:
         p = self.params
         esn = EsnParams(
             size=p.size,
@@ -82,13 +82,13 @@ class AnnealedRnn(EchoStateNetwork):
             feedback_scale=p.feedback_scale,
             scale=Scale(by="singular", value=p.initial_singular),
             relaxation=p.relaxation,
+            relaxation_gain=p.relaxation_gain,
         )
-        net = build_network(esn, data.n_inputs, data.n_outputs, rng)
-        return NetState(net.C.toarray(), net.B_in, net.B_back, net.c0, net.a)
+        return build_network(esn, data.n_inputs, data.n_outputs, rng).dense()  # the moves edit a dense C
 
     def _search(
         self, data: TrainingData, drives: list[np.ndarray], rng: np.random.Generator, report, halt: threading.Event
-    ) -> tuple[NetState, float, list[dict[str, Any]], bool]:
+    ) -> tuple[Network, float, list[dict[str, Any]], bool]:
         """One annealing run, with growth stages when asked."""
         p = self.params
         evaluator = Evaluator(data, p, drives)
@@ -178,7 +178,7 @@ class AnnealedRnn(EchoStateNetwork):
                 f"(validation NMSE {100 * score:.4g} %), not the result of the full schedule",
                 stacklevel=2,
             )
-        self.network_ = best.network(p.relaxation_gain)
+        self.network_ = best.sparse()
         return self._fit_readout(data, cost, progress)
 
     def to_arrays(self):

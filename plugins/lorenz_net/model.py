@@ -15,14 +15,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-from dynmodel import regression
+from dynmodel import readout
 from dynmodel.anneal import Schedule, anneal, run_restarts
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
 
-from .elements import simulate_network
 from .params import LorenzNetParams
 from .search import Evaluator, initial_state, make_moves
+from .streaming import outputs, readout_moments
 
 
 class LorenzNet(Family):
@@ -127,28 +127,17 @@ class LorenzNet(Family):
             )
         self.element_params_, self.C_, self.B_, self.layer_ = state.params, state.C, state.B, state.layer
         progress("readout", None, "least squares on all 3M states")
-        F = [self._states(s.u).reshape(s.n, -1) for s in data.series]
-        fit = regression.lstsq(data.stack("train", F), data.targets("train"))
+        moments = readout_moments(self.element_params_, self.C_, self.B_, self.dt_, p.substeps, data)
+        fit = readout.lstsq(moments["train"])
         self.W_, self.w0_ = np.ascontiguousarray(fit.coef.T), fit.intercept
         return self
-
-    def _states(self, u: np.ndarray) -> np.ndarray:
-        X, _ = simulate_network(
-            self.element_params_,
-            self.C_,
-            self.B_,
-            np.ascontiguousarray(u, dtype=np.float64),
-            self.dt_,
-            self.params.substeps,
-        )
-        return X
 
     def simulate(
         self, u: np.ndarray, y_measured: np.ndarray | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None
     ) -> Simulation:
         self.check_fitted()
-        X = self._states(u).reshape(len(u), -1)
-        y = X @ self.W_.T + self.w0_
+        u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)
+        y = outputs(self.element_params_, self.C_, self.B_, self.dt_, self.params.substeps, u, self.W_, self.w0_)
         bad = np.flatnonzero(~np.isfinite(y).all(axis=1))
         return Simulation(y, int(bad[0]) if bad.size else None)
 
