@@ -26,17 +26,22 @@ def _run(name: str, **settings):
 
 @needs_pneumatic
 def test_pneumatic_seal_one_step_model_loses_track_and_free_running_estimation_fixes_it():
-    result = _run("pneumatic-seal", rounds=2)
+    """Round 1: the one-step model loses track, free-running estimation fixes it (test NMSE 91 % -> 1 %).
+    Round 2: what remains is a nonlinear function of the force itself (the seal's force saturates when it
+    slides), and a leaky echo state network, offered by the esn family for that cause, quarters it."""
+    result = _run("pneumatic-seal", rounds=3)
     assert result.baseline.ds.sampling_time == 0.01  # resampled from the ~10 ms stamps
     top = result.findings[0]
     assert top.cause == "free-run-instability"
     assert top.evidence["nmse_free_run"] > 90.0 and top.evidence["nmse_one_step"] < 0.1
-    chosen = result.rounds[0].chosen
-    assert chosen.extension.patch == {"cost": "mse_inf"} and result.rounds[0].accepted
-    assert result.rounds[1].verdict == "adequate"
+    first = result.rounds[0]
+    assert first.chosen.extension.patch == {"cost": "mse_inf"} and first.accepted
+    assert first.chosen.fit.nmse("test") < 2.0
+    assert result.rounds[1].verdict == "output-nonlinearity" and result.rounds[1].accepted
+    assert result.rounds[-1].verdict == "adequate"
     gain = result.gain
-    assert gain["test_nmse_before"] > 80.0 and gain["test_nmse_after"] < 2.0
-    assert gain["uncertainty"]["relative_reduction"]["interval_95"][0] > 0.9
+    assert gain["test_nmse_before"] > 80.0 and gain["test_nmse_after"] < 0.5
+    assert min(gain["uncertainty"]["relative_reduction"]["values"]) > 0.99
 
 
 @needs_pneumatic

@@ -154,7 +154,7 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
     """index.md and the figures in ``folder``; returns the index path."""
     folder.mkdir(parents=True, exist_ok=True)
     base = result.baseline
-    checks = {f.cause: f for f in result.checks}
+    checks = {f.cause: f for f in result.checks if f.applicable}
     alpha = result.settings.alpha
     memory = result.rounds[0].memory
     drift = checks.get("sensor-drift")
