@@ -98,7 +98,9 @@ def print_diagnosis(result: Diagnosis, out: Console, metrics_table) -> None:
         else:
             out.print(f"round {rnd.index}: {escape(rnd.outcome)}")
     if not result.findings and len(result.rounds) == 1:
-        out.print("[green]adequate[/]: no cause is significant and the model beats the references; nothing to extend")
+        out.print(
+            "[green]adequate[/]: no cause is significant, no reference does significantly better; nothing to extend"
+        )
         return
     named = []
     for i, c in result.named:

@@ -277,6 +277,23 @@ def _candidates(findings: list[Finding], limit: int) -> list[tuple[str, Extensio
     return out[:limit]
 
 
+POOR = 50.0  # a comparison NMSE (%) from which "adequate" comes with a warning
+
+
+def _weak_note(rnd: Round, split: str) -> str:
+    """When nothing is significant but the model explains less than half of the output variance, say that the
+    checks lacked the power to tell what is missing, and which check came closest."""
+    nmse = rnd.fit.nmse(split)
+    if not np.isfinite(nmse) or nmse < POOR:
+        return ""
+    close = [f for f in rnd.findings if f.applicable and f.score >= 0.05]
+    hint = f"; closest: {close[0].cause} ({close[0].reason})" if close else ""
+    return (
+        f", but the model explains only {100 - nmse:.0f} % of the {split} output variance (NMSE {nmse:.3g} %): "
+        f"the data give the checks too little power to name what is missing{hint}"
+    )
+
+
 TIE = 0.01  # candidates within 1 % of the best validation NMSE count as equal: the earliest is kept
 
 
@@ -311,7 +328,7 @@ def diagnose(
             rounds.append(rnd)
             cands = _candidates(findings, settings.candidates)
             if not rnd.significant:
-                rnd.outcome = "adequate: no cause is significant"
+                rnd.outcome = "adequate: no cause is significant" + _weak_note(rnd, split)
             elif not cands:
                 rnd.outcome = f"{rnd.verdict}: no extension is offered for the significant causes"
             else:

@@ -8,7 +8,8 @@ the system's dynamics, so the residual is a filtered nonlinear function of the o
 span that filter; lags up to a twentieth of the longest segment and at most one feature per 20
 training rows). Base features: the same lags of y_hat and of every input, linear (a wrong linear
 dynamics is not an output nonlinearity, see missing-dynamics), Legendre P2 .. P5 of every input's level
-(an input nonlinearity is static-nonlinearity's) and two slow functions of time. Statistic: the
+(an input nonlinearity is static-nonlinearity's), the direction and travel-since-reversal features of an
+input that moves like a position (hysteresis is direction-dependence's) and two slow functions of time. Statistic: the
 out-of-sample incremental R^2 (fit on train, judged on validation) with its batch-means p-value
 (:mod:`dynmodel.diagnose.dependence`). Score: that share of the residual mean square. The evidence also
 gives the residual as a function of the output level (the lag-0 part of the fitted curve).
@@ -25,6 +26,7 @@ from dynmodel.diagnose.context import Context
 from dynmodel.diagnose.dependence import holdout_share, lagged
 from dynmodel.diagnose.detector import Detector, Finding
 
+from .direction import DEADBAND, MAX_REVERSAL_RATE, direction_features
 from .nonlinearity import level_features
 
 LAGS = (0, 1, 2, 4, 8, 16, 32)
@@ -38,6 +40,17 @@ def _scaled(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 def _legendre(x: np.ndarray) -> np.ndarray:
     return np.column_stack([legendre.legval(x, np.eye(6)[d]) for d in DEGREES])
+
+
+def _direction(u_segs: list[np.ndarray], u: np.ndarray, n: int) -> list[np.ndarray]:
+    """direction-dependence's features of an input that moves like a position (hysteresis is not an output
+    nonlinearity), else nothing."""
+    lo, hi = np.quantile(u, [0.01, 0.99])
+    span = float(hi - lo)
+    if span <= 0:
+        return []
+    F, _, count = direction_features(u_segs, DEADBAND * span, span)
+    return [F] if count <= MAX_REVERSAL_RATE * n else []
 
 
 class OutputNonlinearity(Detector):
@@ -72,6 +85,7 @@ class OutputNonlinearity(Detector):
             if np.ptp(u) > 0:
                 inputs.append(np.vstack(lagged(u_segs, lags)))
                 inputs.append(level_features(u)[0])
+                inputs += _direction(u_segs, u, ctx.n)
         best = None
         for k in range(len(ctx.output_names)):
             yh_segs = [s.yhat[:, k] for s in ctx.segments]
