@@ -142,3 +142,17 @@ def test_an_adequate_model_beats_its_references(tmp_path):
     assert result.verdict == "adequate" and len(result.rounds) == 1
     check = next(f for f in result.checks if f.cause == "inadequate-structure")
     assert not check.significant and result.reference["linear"]["nmse"]["validation"] > 0
+
+
+def test_adequate_with_little_power_says_so(tmp_path):
+    """A lightly damped Duffing oscillator (the output-nonlinearity case, seed 111): its narrow-band residual
+    leaves about ten independent batches on validation, no check reaches p < 0.001, yet the model explains
+    only a third of the output variance. The verdict stays 'adequate' (nothing is significant) but says that
+    the data gave the checks too little power, and which check came closest."""
+    from hidden_effects import HIDDEN
+
+    case = HIDDEN["output-nonlinearity"](111)
+    result = diagnose(case.spec(tmp_path), "<test>", tmp_path, Settings(rounds=1))
+    assert result.verdict == "adequate" and result.baseline.nmse("validation") > 50.0
+    outcome = result.rounds[0].outcome
+    assert "too little power" in outcome and "closest: output-nonlinearity" in outcome
