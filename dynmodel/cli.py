@@ -572,7 +572,9 @@ def diagnose_cmd(
         help="report folder (default: <name>-diagnosis next to the spec): index.md, figures, extended.yaml",
     ),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write the summary as JSON"),
-    rounds: int = typer.Option(1, "--rounds", min=1, help="diagnose and extend again until adequate or no gain"),
+    rounds: int = typer.Option(
+        3, "--rounds", min=1, help="rounds of diagnose, extend, refit (stops earlier when adequate or without gain)"
+    ),
     seeds: int = typer.Option(3, "--seeds", min=1, help="fits per spec for random families (gain uncertainty)"),
     alpha: float = typer.Option(0.001, "--alpha", min=1e-12, max=0.5, help="significance level of each detector"),
     min_share: float = typer.Option(
@@ -582,7 +584,7 @@ def diagnose_cmd(
         0.001, "--min-effect", min=0.0, help="... and for this fraction of the output variance"
     ),
     max_lag: Optional[int] = typer.Option(None, "--max-lag", min=1, help="largest lag searched for delays (samples)"),
-    candidates: int = typer.Option(4, "--candidates", min=1, help="extensions measured per round"),
+    candidates: int = typer.Option(6, "--candidates", min=1, help="extensions measured per round"),
     seed: int = typer.Option(0, "--seed", min=0, help="seed of the gain's block bootstrap"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
     force: bool = _FORCE,
@@ -634,57 +636,9 @@ def diagnose_cmd(
 
 
 def _print_diagnosis(result) -> None:
-    base = result.baseline
-    out.print(
-        f"[bold]{result.name}[/]: {base.spec.model.family} (cost {base.spec.cost}) diagnosed in "
-        f"{result.seconds:.1f} s; model memory {result.rounds[0].memory} samples"
-    )
-    out.print(metrics_table(base.metrics, "baseline free run"))
-    table = Table(
-        title="checks (significant first, by score: share of the residual's mean square)", title_justify="left"
-    )
-    for col, kw in (("cause", {}), ("significant", {}), ("score", {"justify": "right"}), ("p", {"justify": "right"})):
-        table.add_column(col, **kw)
-    for f in result.checks:
-        p = f.evidence.get("p_value")
-        table.add_row(
-            f.cause,
-            "yes" if f.significant else "",
-            f"{f.score:.3g}",
-            "-" if p is None else ("<1e-16" if p < 1e-16 else f"{p:.2g}"),
-        )
-    out.print(table)
-    if not result.findings:
-        out.print("[green]adequate[/]: no cause is significant; nothing to extend")
-        return
-    for i, f in enumerate(result.findings, 1):
-        out.print(f"{i}. [bold]{f.cause}[/]: {escape(f.summary)}")
-    top = result.findings[0]
-    out.print(f"named cause: [bold]{top.cause}[/]")
-    for rnd in result.rounds:
-        if rnd.chosen is not None:
-            out.print(f"round {rnd.index}: {escape(rnd.chosen.extension.summary)}; {rnd.outcome}")
-        elif rnd.outcome:
-            out.print(f"round {rnd.index}: {rnd.outcome}")
-    g = result.gain
-    if g:
-        before = g.get("test_nmse_before")
-        after = g.get("test_nmse_after")
-        red = g.get("relative_reduction")
-        unc = g.get("uncertainty") or {}
-        unc = unc["per_output"][0] if "per_output" in unc else unc
-        rr = unc.get("relative_reduction") or {}
-        spread = f" ± {100 * rr['std']:.1f} %" if rr.get("std") is not None else ""
+    from .diagnose.console import print_diagnosis
 
-        def shown(v, diverged):
-            return "diverged" if diverged else f"{_fmt(v)} %"
-
-        out.print(
-            f"test NMSE {shown(before, g.get('baseline_diverged_on_test'))} -> "
-            f"{shown(after, g.get('extended_diverged_on_test'))}"
-            + (f" (reduction {100 * red:.1f} %{spread})" if red is not None else "")
-            + f"; test MAX {_fmt(g.get('test_max_before'))} -> {_fmt(g.get('test_max_after'))}"
-        )
+    print_diagnosis(result, out, metrics_table)
 
 
 # ------------------------------------------------------------------------------ sweep

@@ -36,6 +36,7 @@ from .data.training import TrainingData
 from .errors import ParameterError
 
 if TYPE_CHECKING:
+    from .extensions import Extension, ExtensionContext
     from .model import FittedModel
     from .reliability.system import DrivenSystem
 
@@ -363,6 +364,22 @@ class Family(ABC):
 
     def summary(self) -> dict[str, Any]:
         """A few facts for `dynmodel inspect`."""
+        return {}
+
+    # -- extensions (dynmodel diagnose, family: auto; docs/plugins-extensions.md) ------------
+    @classmethod
+    def extensions(cls, cause: str, ctx: ExtensionContext) -> list[Extension]:
+        """Changes of the spec this family offers for ``cause`` (a diagnosis cause id, e.g.
+        'output-nonlinearity', 'missing-dynamics'), as merge patches with one-line summaries, most
+        promising first; [] for causes it has nothing for. When ``ctx.family`` is another family, only
+        proposals that switch the spec to this family (see :func:`dynmodel.extensions.switch_family`)."""
+        return []
+
+    @classmethod
+    def include_inputs(cls, channels: list[str], history: int, ctx: ExtensionContext) -> dict[str, Any]:
+        """Patch that makes a model of this family (``ctx.family``) use the new model-input ``channels``
+        (delay lines, derived inputs) with ``history`` past samples of each (0: the current value only);
+        {} when the family uses every model input anyway."""
         return {}
 
     def check_fitted(self) -> None:

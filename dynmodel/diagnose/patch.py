@@ -11,20 +11,10 @@ import copy
 from pathlib import Path
 from typing import Any
 
+from ..extensions import merge
 from ..spec import validate_spec
 
-
-def merge(target: Any, patch: Any) -> Any:
-    """RFC 7396 merge of ``patch`` into a copy of ``target``."""
-    if not isinstance(patch, dict):
-        return copy.deepcopy(patch)
-    out = copy.deepcopy(target) if isinstance(target, dict) else {}
-    for key, value in patch.items():
-        if value is None:
-            out.pop(key, None)
-        else:
-            out[key] = merge(out.get(key), value)
-    return out
+__all__ = ["merge", "portable", "apply"]
 
 
 def portable(raw: dict[str, Any], base_dir: Path) -> dict[str, Any]:

@@ -204,3 +204,10 @@ class AnnealedRnn(EchoStateNetwork):
             if search.get("interrupted"):
                 info["annealing"] += " (interrupted: best network so far)"
         return info
+
+    # ------------------------------------------------------------------ extensions (docs/plugins-extensions.md)
+    @classmethod
+    def extensions(cls, cause, ctx):
+        from .extensions import extensions
+
+        return extensions(cause, ctx)

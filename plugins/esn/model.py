@@ -372,3 +372,10 @@ class EchoStateNetwork(Family):
             if len(self.refinement_) > 1:
                 info["refinement iterations"] = len(self.refinement_) - 1
         return info
+
+    # ------------------------------------------------------------------ extensions (docs/plugins-extensions.md)
+    @classmethod
+    def extensions(cls, cause, ctx):
+        from .extensions import extensions
+
+        return extensions(cause, ctx)

@@ -443,3 +443,16 @@ class Narx(Family):
             if last.get("validation_nmse") is not None:
                 info["mse_inf validation NMSE %"] = round(float(last["validation_nmse"]), 6)
         return info
+
+    # ------------------------------------------------------------------ extensions (docs/plugins-extensions.md)
+    @classmethod
+    def extensions(cls, cause, ctx):
+        from .extensions import extensions
+
+        return extensions(cause, ctx)
+
+    @classmethod
+    def include_inputs(cls, channels, history, ctx):
+        from .extensions import include_inputs
+
+        return include_inputs(channels, history, ctx)
