@@ -12,6 +12,7 @@ from conftest import write_yaml
 from hidden_effects import MASKED, Case, linear_system
 
 from dynmodel.diagnose import Settings, diagnose
+from dynmodel.errors import DataError
 
 #: seeds of the masked-cause cases run by default; the slow test runs 1..8
 FAST = {"sensor-drift": 2, "missing-delay": 3}
@@ -89,13 +90,14 @@ def test_every_check_says_why_it_is_or_is_not_named(cli, tmp_path):
 
 # ------------------------------------------------------------------ adequacy reference
 def test_data_growing_without_bound_is_never_called_adequate(tmp_path):
-    """An unstable system's output grows to about 1e44: the model explains nothing of it (NMSE near 100 %),
-    and the diagnosis says so instead of 'adequate'."""
+    """An unstable system's output grows without bound: the model explains nothing of it (NMSE near
+    100 % or worse), and the diagnosis says so instead of 'adequate'. Growth to about 1e44 is refused
+    earlier, when the data are loaded (a one-line data error naming the column), never 'adequate'."""
     rng = np.random.default_rng(3)
     n = 5000
     u = rng.standard_normal(n)
-    y = linear_system(u, a0=1.02)
-    assert np.abs(y).max() > 1e40
+    y = linear_system(u, a0=1.003)
+    assert np.abs(y).max() > 1e7
     case = Case("growth", {"u": u, "y": y}, {"family": "narx", "params": {"degree": 1, "lags": {"u": [0, 1]}}})
     result = diagnose(case.spec(tmp_path), "<test>", tmp_path, Settings(rounds=1))
     assert result.verdict != "adequate"
@@ -104,6 +106,12 @@ def test_data_growing_without_bound_is_never_called_adequate(tmp_path):
     ev = found["inadequate-structure"].evidence
     assert ev["model_nmse"][ev["split"]] >= 90.0 and ev["mean_nmse"][ev["split"]] > 0
     assert "near useless" in found["inadequate-structure"].reason
+
+    y = linear_system(u, a0=1.02)
+    assert np.abs(y).max() > 1e40
+    case = Case("growth44", {"u": u, "y": y}, {"family": "narx", "params": {"degree": 1, "lags": {"u": [0, 1]}}})
+    with pytest.raises(DataError, match="output column 'y' reaches"):
+        diagnose(case.spec(tmp_path), "<test>", tmp_path, Settings(rounds=1))
 
 
 def test_a_model_that_a_linear_reference_beats_is_named_with_the_reference_figure(tmp_path):
