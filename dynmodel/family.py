@@ -54,6 +54,9 @@ class Family(ABC):
     Params: ClassVar[type[FamilyParams]] = FamilyParams
     #: what to try when a free run diverges (the fix of the one-line error)
     stability_hint: ClassVar[str] = "use cost: mse_inf"
+    #: the cost a spec without ``cost:`` fits with ('mse1' or 'mse_inf'): what the family's estimation
+    #: does best for a model that is evaluated in free run
+    default_cost: ClassVar[str] = "mse1"
     #: does ``fit`` draw random numbers (network weights, annealing moves)? Then a result depends on the
     #: seed, and ``dynmodel diagnose`` repeats fits over seeds to measure a gain's uncertainty
     stochastic: ClassVar[bool] = True
