@@ -13,6 +13,7 @@ All functions take a feature matrix F (N, K) and targets Y (N, q) and return a
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -139,22 +140,30 @@ class FosPath:
     best: int  # number of terms kept
 
 
-class _Stopper:
-    """The stopping rule shared by both FOS variants: with a validation pool, the number of terms
-    with the lowest validation error, searched until ``patience`` terms bring no new lowest
-    (thesis A.3); without one, every selected term is kept."""
+#: score(order, coef) -> validation error of the model made of the pool terms ``order`` with weights
+#: ``coef`` (inf when it cannot be evaluated), e.g. the error of a NARX model's free run
+Score = Callable[[list[int], np.ndarray], float]
 
-    def __init__(self, Pv: np.ndarray | None, yv: np.ndarray | None, patience: int):
-        self.Pv, self.yv, self.patience = Pv, yv, patience
+
+class _Stopper:
+    """The stopping rule shared by both FOS variants: with a validation pool (or a ``score``), the
+    number of terms with the lowest validation error, searched until ``patience`` terms bring no new
+    lowest (thesis A.3); without one, every selected term is kept."""
+
+    def __init__(self, Pv: np.ndarray | None, yv: np.ndarray | None, patience: int, score: Score | None = None):
+        self.Pv, self.yv, self.patience, self.score = Pv, yv, patience, score
         self.errors: list[float] = []
         self.best_m, self.best_val, self.since_best = 0, np.inf, 0
 
     def add(self, order: list[int], coef: np.ndarray, forced: bool) -> bool:
         """Record the model with ``order`` terms; True when the search should stop."""
-        if self.Pv is None or self.yv is None:
+        if self.score is not None:
+            err = float(self.score(list(order), coef))
+        elif self.Pv is None or self.yv is None:
             self.best_m = len(order)
             return False
-        err = float(np.mean((self.yv - self.Pv[:, order] @ coef) ** 2))
+        else:
+            err = float(np.mean((self.yv - self.Pv[:, order] @ coef) ** 2))
         self.errors.append(err)
         if err < self.best_val * (1 - 1e-12) or forced:
             self.best_val, self.best_m, self.since_best = err, len(order), 0
@@ -185,6 +194,7 @@ def fos_select(
     patience: int = 1,
     tol: float = 1e-10,
     ties: float = 0.0,
+    score: Score | None = None,
 ) -> FosPath:
     """Korenberg's FOS on the Gram matrix G = P^T P of the pool P, c = P^T y, yy = y^T y.
 
@@ -196,7 +206,8 @@ def fos_select(
 
     Stopping: ``max_terms``; ``threshold`` on Q / yy (the error-reduction ratio); or, with a
     validation pool ``Pv`` and targets ``yv``, after ``patience`` terms without a new lowest
-    validation error (``patience=1``: stop at the first rise). The kept size is the best one.
+    validation error (``patience=1``: stop at the first rise); ``score`` replaces the validation pool
+    by any validation error of the model (e.g. of a free run). The kept size is the best one.
     ``ties``: candidates whose error reduction is within this relative tolerance of the largest
     count as equal and the first of them in pool order is chosen (e.g. the lower-degree monomial).
     """
@@ -213,7 +224,7 @@ def fos_select(
     available = diag > 0
     order: list[int] = []
     coef_path: list[np.ndarray] = []
-    stopper = _Stopper(Pv, yv, patience)
+    stopper = _Stopper(Pv, yv, patience, score)
     for m in range(limit):
         if m > 0:
             prev = order[-1]
@@ -225,7 +236,7 @@ def fos_select(
         valid = available & (Dmm > tol * np.maximum(diag, 1e-300))
         if not valid.any():
             break
-        i = _next_term(m, forced, valid, lambda: Ct * Ct / np.where(valid, Dmm, 1.0), threshold, yy, ties)
+        i = _next_term(order, forced, valid, lambda: Ct * Ct / np.where(valid, Dmm, 1.0), threshold, yy, ties)
         if i is None:
             break
         alpha[m, :m] = Dt[:m, i] / D[:m]
@@ -237,7 +248,7 @@ def fos_select(
         A = np.eye(m + 1) + np.tril(alpha[: m + 1, : m + 1], -1)
         coef = _solve_unit_upper(A.T, beta)
         coef_path.append(coef)
-        if stopper.add(order, coef, m < len(forced)):
+        if stopper.add(order, coef, i in forced):
             break
     return stopper.path(order, coef_path, Q)
 
@@ -281,7 +292,7 @@ def fos_select_qr(
         valid = available & (d > tol * np.maximum(norm0, 1e-300)) & (d > 0)
         if not valid.any():
             break
-        i = _next_term(m, forced, valid, lambda: (V.T @ r) ** 2 / np.where(valid, d, 1.0), threshold, yy)
+        i = _next_term(order, forced, valid, lambda: (V.T @ r) ** 2 / np.where(valid, d, 1.0), threshold, yy)
         if i is None:
             break
         q = V[:, i] / np.sqrt(d[i])
@@ -296,20 +307,30 @@ def fos_select_qr(
         U = T[: m + 1][:, order]  # upper triangular: the chosen columns = Q_sel U
         coef = scipy.linalg.solve_triangular(U, beta[: m + 1])
         coef_path.append(coef)
-        if stopper.add(order, coef, m < len(forced)):
+        if stopper.add(order, coef, i in forced):
             break
     return stopper.path(order, coef_path, Q)
 
 
 def _next_term(
-    m: int, forced: tuple[int, ...], valid: np.ndarray, reduction, threshold: float | None, yy: float, ties: float = 0.0
+    chosen: list[int],
+    forced: tuple[int, ...],
+    valid: np.ndarray,
+    reduction,
+    threshold: float | None,
+    yy: float,
+    ties: float = 0.0,
 ) -> int | None:
-    """Index of the m-th FOS term, or None to stop: the forced terms first, then the candidate with
+    """Index of the next FOS term, or None to stop: the forced terms first (skipping those numerically in
+    the span of the terms already chosen), then the candidate with
     the largest error reduction Q = C^2 / D (appendix A.2.2), the first of the nearly best ones in pool
     order when ``ties`` > 0; stop when nothing is left or the best reduction falls below
     ``threshold`` times y'y. ``reduction()`` gives Q for every candidate."""
-    if m < len(forced):
-        return forced[m] if valid[forced[m]] else None
+    pending = [f for f in forced if f not in chosen]
+    while pending and not valid[pending[0]]:  # a forced term in the span of those chosen adds nothing
+        pending.pop(0)
+    if pending:
+        return pending[0]
     score = np.where(valid, reduction(), -np.inf)
     i = int(np.argmax(score))
     if ties > 0.0:
