@@ -1,6 +1,15 @@
 """Compiled (numba) hot loops. Every kernel here has a plain-numpy twin in the tests or benchmarks."""
 
-from .network import dense_step_batch, dense_tangent_batch, drive, drive_features, free_run, step_batch, tangent_batch
+from .network import (
+    dense_step_batch,
+    dense_tangent_batch,
+    drive,
+    drive_features,
+    free_run,
+    free_run_clipped,
+    step_batch,
+    tangent_batch,
+)
 from .spread import group_spread, row_distances
 from .tanh import tanh_vec
 
@@ -9,6 +18,7 @@ __all__ = [
     "drive",
     "drive_features",
     "free_run",
+    "free_run_clipped",
     "step_batch",
     "tangent_batch",
     "dense_step_batch",

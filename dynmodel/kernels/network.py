@@ -74,14 +74,17 @@ def drive_features(indptr, indices, data, B, c0, a, g, V, x0, direct, F):
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
-def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states):
+def free_run_clipped(
+    indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states, clip_lo, clip_hi
+):
     """External-mode run: the network is fed its own past output.
 
     Drive ``v_t = [u_t, f_t]`` with feedback ``f_t``:
       * ``t <= tune_in`` (tune-in): measured ``y_{t-1}`` (``y_0`` at t = 0);
       * afterwards ``mix * y_{t-1} + (1 - mix) * yhat_{t-1}`` (``mix`` = 0: pure free run;
         0 < mix < 1: the error-propagation schedule of thesis 6.3.2, needs all of ``Y``).
-    Output ``yhat_t = W x_t + D v_t + w0``. A run whose output leaves [lo, hi] (or is not
+    Output ``yhat_t = W x_t + D v_t + w0``, clipped to [clip_lo, clip_hi] (eq. 6.25; the clipped
+    value is the one fed back). A run whose output leaves [lo, hi] (or is not
     finite) after the tune-in stops; the remaining outputs are NaN and the sample index is
     returned (else -1). Outputs during the tune-in are not fed back and are not checked.
 
@@ -123,6 +126,10 @@ def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y
                 acc += W[k, i] * cur[i]
             for j in range(n_in + n_out):
                 acc += D[k, j] * v[j]
+            if acc > clip_hi[k]:
+                acc = clip_hi[k]
+            elif acc < clip_lo[k]:
+                acc = clip_lo[k]
             yhat[t, k] = acc
             if t >= tune_in and not (lo[k] <= acc <= hi[k]):
                 bad = True
@@ -135,6 +142,15 @@ def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y
         prev = cur
         cur = tmp
     return X, yhat, fb, diverged
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
+def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states):
+    """:func:`free_run_clipped` without clipping."""
+    inf = np.full(W.shape[0], np.inf)
+    return free_run_clipped(
+        indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states, -inf, inf
+    )
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")

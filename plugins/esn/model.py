@@ -108,8 +108,23 @@ class EchoStateNetwork(Family):
     def _prepare(self, data: TrainingData) -> None:
         self.n_inputs_ = data.n_inputs
         self.n_outputs_ = data.n_outputs
-        self.y_rest_ = np.nanmean(data.targets("train"), axis=0)
+        y = data.targets("train")
+        self.y_rest_ = np.nanmean(y, axis=0)
         self._bounds = data.output_bounds()
+        self.clip_lo_ = np.full(self.n_outputs_, -np.inf)
+        self.clip_hi_ = np.full(self.n_outputs_, np.inf)
+        m = getattr(self.params, "bounds", None)  # families built on this one may not clip
+        if m is not None:
+            lo, hi = np.nanmin(y, axis=0), np.nanmax(y, axis=0)
+            self.clip_lo_, self.clip_hi_ = lo - m * (hi - lo), hi + m * (hi - lo)
+
+    @property
+    def _clip(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = getattr(self, "clip_lo_", None)
+        if lo is None:  # a model saved before clipping existed
+            inf = np.full(self.n_outputs_, np.inf)
+            return -inf, inf
+        return self.clip_lo_, self.clip_hi_
 
     def training_drives(self, data: TrainingData) -> list[np.ndarray]:
         """Per series: the drive in training (input, plus the measured past output in external mode)."""
@@ -151,7 +166,7 @@ class EchoStateNetwork(Family):
         lo, hi = self._bounds
         for s in data.series:
             out.append(
-                kernels.free_run(
+                kernels.free_run_clipped(
                     *args,
                     np.ascontiguousarray(s.u),
                     np.ascontiguousarray(s.y),
@@ -165,6 +180,7 @@ class EchoStateNetwork(Family):
                     hi,
                     np.zeros(self.network_.size),
                     store,
+                    *self._clip,
                 )
             )
         return out
@@ -226,9 +242,11 @@ class EchoStateNetwork(Family):
         self.check_fitted()
         u = np.ascontiguousarray(u, dtype=np.float64)
         if not self.external:
-            # no feedback: the output is a static map of bounded states and cannot diverge
+            # no feedback: the output is a static map of bounded states; clipped (eq. 6.25) because
+            # the readout extrapolates linearly in the direct inputs and in states never seen
             X = self._states(u)
-            return Simulation(X @ self.W_.T + self._drive_direct(u) + self.w0_, None)
+            y = np.clip(X @ self.W_.T + self._drive_direct(u) + self.w0_, *self._clip)
+            return Simulation(y, None)
         tune = min(self.params.tune_in, u.shape[0])
         if tune > 0 and (y_measured is None or len(y_measured) < tune):
             have = 0 if y_measured is None else len(y_measured)
@@ -237,7 +255,7 @@ class EchoStateNetwork(Family):
             )
         Y = np.zeros((0, self.n_outputs_)) if tune == 0 else np.ascontiguousarray(y_measured[:tune], dtype=np.float64)
         lo, hi = bounds if bounds is not None else (np.full(self.n_outputs_, -np.inf), np.full(self.n_outputs_, np.inf))
-        _, y, _, div = kernels.free_run(
+        _, y, _, div = kernels.free_run_clipped(
             *self.network_.kernel_args(),
             u,
             Y.reshape(-1, self.n_outputs_),
@@ -251,6 +269,7 @@ class EchoStateNetwork(Family):
             hi,
             np.zeros(self.network_.size),
             False,
+            *self._clip,
         )
         return Simulation(y, None if div < 0 else int(div))
 
@@ -314,6 +333,8 @@ class EchoStateNetwork(Family):
             "D": self.D_,
             "w0": self.w0_,
             "y_rest": self.y_rest_,
+            "clip_low": self._clip[0],
+            "clip_high": self._clip[1],
         }
         attrs = {
             "size": net.size,
@@ -335,6 +356,9 @@ class EchoStateNetwork(Family):
         self.W_, self.D_, self.w0_ = arrays["W"], arrays["D"], arrays["w0"]
         self.y_rest_ = arrays["y_rest"]
         self.n_inputs_, self.n_outputs_ = int(attrs["n_inputs"]), int(attrs["n_outputs"])
+        if "clip_low" in arrays:
+            self.clip_lo_ = np.asarray(arrays["clip_low"], dtype=np.float64)
+            self.clip_hi_ = np.asarray(arrays["clip_high"], dtype=np.float64)
         self.refinement_ = list(attrs.get("refinement") or [])
         return self
 
@@ -349,6 +373,8 @@ class EchoStateNetwork(Family):
             "readout": self.params.readout.solver,
         }
         info["readout terms"] = [int(len(s)) for s in self.selected_]
+        if np.isfinite(self._clip[0]).any():
+            info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(*self._clip)]
         if self.external:
             info["tune_in"] = self.params.tune_in
             if len(self.refinement_) > 1:
