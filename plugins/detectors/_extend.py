@@ -43,9 +43,21 @@ def lag_table(ctx: Context) -> dict[str, list[int]]:
     lags = ctx.params.get("lags")
     if lags is not None:
         return {name: expand(items) for name, items in lags.items()}
+    emb = getattr(ctx.model.family, "embedding_", None)
+    if emb is not None:  # the default table is chosen on the data: the one the fitted model uses
+        fitted: dict[str, list[int]] = {}
+        for r in emb.regressors:
+            fitted.setdefault(r.name, []).append(r.lag)
+        return fitted
     table = {name: list(DEFAULT_INPUT_LAGS) for name in ctx.model.preprocessor.model_input_names}
     table.update({name: list(DEFAULT_OUTPUT_LAGS) for name in ctx.output_names})
     return table
+
+
+def narx_degree(ctx: Context) -> int:
+    """The narx model's degree: the spec's, or the one chosen on the data (``degree: null``)."""
+    chosen = (getattr(ctx.model.family, "selection_", None) or {}).get("degree")
+    return int(ctx.params.get("degree") or chosen or 3)
 
 
 def _compact(lags: list[int]) -> list[Any]:
@@ -133,7 +145,7 @@ def stabilizers(ctx: Context) -> list[Extension]:
                     params_patch(ridge="auto"),
                 )
             )
-        degree = int(ctx.params.get("degree", 2))
+        degree = narx_degree(ctx)
         if degree > 2 and ctx.params.get("terms") is None:
             out.append(
                 Extension(
@@ -193,7 +205,7 @@ def more_memory(ctx: Context, tau: int) -> list[Extension]:
 def more_nonlinearity(ctx: Context) -> list[Extension]:
     """Capacity for a static nonlinearity: a higher polynomial degree, a more strongly driven or larger network."""
     if ctx.family == NARX:
-        degree = int(ctx.params.get("degree", 2))
+        degree = narx_degree(ctx)
         options = []
         for d in (degree + 2, degree + 1):
             if d <= 10 and _pool_size(ctx, d) <= int(ctx.params.get("max_pool", 3000)):
