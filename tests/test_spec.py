@@ -139,3 +139,13 @@ def test_json_schema_shows_every_family_and_generator_parameter():
         "transient",
     ]:
         assert needle in schema, needle
+
+
+def test_a_spec_without_cost_takes_its_familys_default_cost():
+    data = {"generator": "narx-system", "n": 500}
+    narx_spec_ = validate_spec({"data": data, "model": {"family": "narx"}})
+    esn_spec = validate_spec({"data": data, "model": {"family": "esn"}})
+    assert narx_spec_.cost == "mse_inf" and esn_spec.cost == "mse1"  # narx is estimated where it is used: free run
+    assert validate_spec({"data": data, "model": {"family": "narx"}, "cost": "mse1"}).cost == "mse1"
+    resolved = narx_spec_.resolved()
+    assert resolved["cost"] == "mse_inf" and validate_spec(resolved).resolved() == resolved
