@@ -66,14 +66,21 @@ def lstsq(F: np.ndarray, Y: np.ndarray, rcond: float | None = None, fit_intercep
     (default ``rcond``: machine epsilon times max(N, K), as numpy and MATLAB's pinv)."""
     Y = _as2d(Y)
     R, QtY = qr_reduce(np.asarray(F, dtype=np.float64), Y, ones=fit_intercept)
+    W, rank = lstsq_factor(R, QtY, F.shape[0], rcond)
+    if fit_intercept:
+        return LinearFit(W[:-1], W[-1], info={"rank": rank})
+    return LinearFit(W, np.zeros(Y.shape[1]), info={"rank": rank})
+
+
+def lstsq_factor(R: np.ndarray, QtY: np.ndarray, n_rows: int, rcond: float | None = None) -> tuple[np.ndarray, int]:
+    """Minimum-norm solution (and rank) of min ||A w - Y|| given any square factor R with
+    R^T R = A^T A and R^T QtY = A^T Y (A has ``n_rows`` rows): through the SVD of R, singular
+    values below ``rcond * s_max`` dropped (default eps * max(n_rows, K))."""
     U, s, Vt = np.linalg.svd(R)
     if rcond is None:
-        rcond = np.finfo(np.float64).eps * max(F.shape[0], R.shape[0])
+        rcond = np.finfo(np.float64).eps * max(n_rows, R.shape[0])
     keep = s > rcond * (s[0] if s.size else 0.0)
-    W = Vt[keep].T @ ((U[:, keep].T @ QtY) / s[keep, None])
-    if fit_intercept:
-        return LinearFit(W[:-1], W[-1], info={"rank": int(keep.sum())})
-    return LinearFit(W, np.zeros(Y.shape[1]), info={"rank": int(keep.sum())})
+    return Vt[keep].T @ ((U[:, keep].T @ QtY) / s[keep, None]), int(keep.sum())
 
 
 def ridge_path(F: np.ndarray, Y: np.ndarray, alphas=None, fit_intercept: bool = True) -> list[LinearFit]:
@@ -86,6 +93,12 @@ def ridge_path(F: np.ndarray, Y: np.ndarray, alphas=None, fit_intercept: bool = 
     fm = F.mean(axis=0) if fit_intercept else np.zeros(F.shape[1])
     ym = Y.mean(axis=0) if fit_intercept else np.zeros(Y.shape[1])
     R, QtY = qr_reduce(F - fm, Y - ym)
+    return ridge_factor_path(R, QtY, fm, ym, alphas)
+
+
+def ridge_factor_path(R: np.ndarray, QtY: np.ndarray, fm: np.ndarray, ym: np.ndarray, alphas=None) -> list[LinearFit]:
+    """:func:`ridge_path` from a factor R, QtY of the centred features and targets (R^T R = Fc^T Fc,
+    R^T QtY = Fc^T Yc) and the means ``fm``, ``ym`` (zeros: no intercept)."""
     U, s, Vt = np.linalg.svd(R)
     UtY = U.T @ QtY
     if alphas is None:
@@ -140,30 +153,32 @@ class FosPath:
     best: int  # number of terms kept
 
 
-#: score(order, coef) -> validation error of the model made of the pool terms ``order`` with weights
-#: ``coef`` (inf when it cannot be evaluated), e.g. the error of a NARX model's free run
-Score = Callable[[list[int], np.ndarray], float]
+#: validation error of a FOS model: (selected pool indices, their coefficients) -> an error to
+#: minimise (inf when the model cannot be evaluated), e.g. the mean squared error of the validation
+#: rows (from their moments) or of a NARX model's free run on the validation split
+ValidationError = Callable[[list[int], np.ndarray], float]
 
 
 class _Stopper:
-    """The stopping rule shared by both FOS variants: with a validation pool (or a ``score``), the
-    number of terms with the lowest validation error, searched until ``patience`` terms bring no new
-    lowest (thesis A.3); without one, every selected term is kept."""
+    """The stopping rule shared by both FOS variants: with a validation pool (or a ``validation``
+    error function), the number of terms with the lowest validation error, searched until
+    ``patience`` terms bring no new lowest (thesis A.3); without one, every selected term is kept."""
 
-    def __init__(self, Pv: np.ndarray | None, yv: np.ndarray | None, patience: int, score: Score | None = None):
-        self.Pv, self.yv, self.patience, self.score = Pv, yv, patience, score
+    def __init__(
+        self, Pv: np.ndarray | None, yv: np.ndarray | None, patience: int, validation: ValidationError | None = None
+    ):
+        if validation is None and Pv is not None and yv is not None:
+            validation = lambda order, coef: float(np.mean((yv - Pv[:, order] @ coef) ** 2))  # noqa: E731
+        self.validation, self.patience = validation, patience
         self.errors: list[float] = []
         self.best_m, self.best_val, self.since_best = 0, np.inf, 0
 
     def add(self, order: list[int], coef: np.ndarray, forced: bool) -> bool:
         """Record the model with ``order`` terms; True when the search should stop."""
-        if self.score is not None:
-            err = float(self.score(list(order), coef))
-        elif self.Pv is None or self.yv is None:
+        if self.validation is None:
             self.best_m = len(order)
             return False
-        else:
-            err = float(np.mean((self.yv - self.Pv[:, order] @ coef) ** 2))
+        err = float(self.validation(list(order), coef))
         self.errors.append(err)
         if err < self.best_val * (1 - 1e-12) or forced:
             self.best_val, self.best_m, self.since_best = err, len(order), 0
@@ -194,7 +209,7 @@ def fos_select(
     patience: int = 1,
     tol: float = 1e-10,
     ties: float = 0.0,
-    score: Score | None = None,
+    validation: ValidationError | None = None,
 ) -> FosPath:
     """Korenberg's FOS on the Gram matrix G = P^T P of the pool P, c = P^T y, yy = y^T y.
 
@@ -206,8 +221,9 @@ def fos_select(
 
     Stopping: ``max_terms``; ``threshold`` on Q / yy (the error-reduction ratio); or, with a
     validation pool ``Pv`` and targets ``yv``, after ``patience`` terms without a new lowest
-    validation error (``patience=1``: stop at the first rise); ``score`` replaces the validation pool
-    by any validation error of the model (e.g. of a free run). The kept size is the best one.
+    validation error (``patience=1``: stop at the first rise). The kept size is the best one.
+    ``validation(order, coef)`` may give that error instead of ``Pv``, ``yv`` (e.g. from the
+    accumulated moments of the validation rows, :mod:`dynmodel.moments`, or the error of a free run).
     ``ties``: candidates whose error reduction is within this relative tolerance of the largest
     count as equal and the first of them in pool order is chosen (e.g. the lower-degree monomial).
     """
@@ -224,7 +240,7 @@ def fos_select(
     available = diag > 0
     order: list[int] = []
     coef_path: list[np.ndarray] = []
-    stopper = _Stopper(Pv, yv, patience, score)
+    stopper = _Stopper(Pv, yv, patience, validation)
     for m in range(limit):
         if m > 0:
             prev = order[-1]
@@ -265,6 +281,7 @@ def fos_select_qr(
     yv: np.ndarray | None = None,
     patience: int = 1,
     tol: float = 1e-24,
+    validation: ValidationError | None = None,
 ) -> FosPath:
     """FOS with the same selection rule as :func:`fos_select`, numerically stable.
 
@@ -286,7 +303,7 @@ def fos_select_qr(
     order: list[int] = []
     coef_path: list[np.ndarray] = []
     Q = np.zeros(limit)
-    stopper = _Stopper(Pv, yv, patience)
+    stopper = _Stopper(Pv, yv, patience, validation)
     for m in range(limit):
         d = np.einsum("ij,ij->j", V, V)
         valid = available & (d > tol * np.maximum(norm0, 1e-300)) & (d > 0)

@@ -475,7 +475,7 @@ def format_validation_error(err: ValidationError, source: str) -> SpecError:
         key = str(loc[-1])
         allowed = _allowed_keys(loc) or []
         close = difflib.get_close_matches(key, allowed, n=1)
-        fix = f"did you mean '{close[0]}'?" if close else "remove it"
+        fix = f"did you mean '{close[0]}'?" if close else "remove it."
         if allowed:
             fix += f" Allowed keys here: {', '.join(allowed)}"
         return SpecError(f"unknown key '{key}'", f"{source}: {_dotted(loc[:-1]) or 'top level'}", fix)
@@ -514,9 +514,10 @@ def _construct_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bo
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
-def parse_yaml(text: str, source: str) -> dict[str, Any]:
+def read_yaml(text: str, source: str) -> Any:
+    """Safe YAML with duplicate keys refused; a malformed document raises SpecError naming the line."""
     try:
-        raw = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - safe loader subclass
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - safe loader subclass
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
@@ -524,6 +525,10 @@ def parse_yaml(text: str, source: str) -> dict[str, Any]:
         raise SpecError(
             f"malformed YAML: {problem}", where, "check indentation, colons and brackets on that line"
         ) from None
+
+
+def parse_yaml(text: str, source: str) -> dict[str, Any]:
+    raw = read_yaml(text, source)
     if raw is None:
         raise SpecError("the spec is empty", source, "write at least data: and model: sections")
     if not isinstance(raw, dict):
@@ -578,6 +583,17 @@ def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | 
     return spec
 
 
+def read_spec_text(p: Path) -> str:
+    """The text of a spec file: UTF-8 (with or without BOM), UTF-16 or Latin-1; one-line errors."""
+    from .errors import DataError
+    from .textfiles import read_text_file
+
+    try:
+        return read_text_file(p, "spec")
+    except DataError as exc:
+        raise SpecError(exc.what, exc.where, exc.fix) from None
+
+
 def load_spec(path: str | Path):
     """Load and validate a YAML spec file. Relative paths inside resolve against its folder."""
     p = Path(path)
@@ -585,11 +601,7 @@ def load_spec(path: str | Path):
         raise SpecError("spec file not found", str(p), "check the path")
     if p.is_dir():
         raise SpecError("is a folder, not a spec file", str(p), "pass the YAML file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SpecError(f"cannot read the spec ({exc})", str(p), "check the file") from None
-    raw = parse_yaml(text, str(p))
+    raw = parse_yaml(read_spec_text(p), str(p))
     raw.setdefault("name", p.stem)
     return validate_spec(raw, str(p), p.parent)
 

@@ -8,7 +8,8 @@ start of every range are excluded from fitting and scoring; scores pool over rec
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,7 @@ from .. import registry
 from ..errors import DataError, SpecError
 from ..spec import SPLITS
 from . import resample
+from .checks import check_signals
 from .readers import read_columns
 
 Range = tuple[int, int, int]  # (recording index, start, stop)
@@ -30,10 +32,20 @@ class Recording:
     name: str
     u: np.ndarray  # (n, n_inputs)
     y: np.ndarray  # (n, n_outputs)
+    #: first sample of this recording in its file (a segment of a longer file starts later)
+    offset: int = 0
+    #: the source's own column names (a separate test file may name its columns differently)
+    input_columns: list[str] | None = None
+    output_columns: list[str] | None = None
 
     @property
     def n(self) -> int:
         return self.u.shape[0]
+
+    def span(self, start: int, stop: int) -> str:
+        """``file[start:stop]`` with sample indices of the file (not of the segment)."""
+        base = self.name.rsplit("[", 1)[0] if self.offset or self.name.endswith("]") else self.name
+        return f"{base}[{self.offset + start}:{self.offset + stop}]"
 
 
 @dataclass
@@ -44,7 +56,6 @@ class Dataset:
     input_names: list[str]
     output_names: list[str]
     sampling_time: float
-    noise_std: dict[str, np.ndarray] = field(default_factory=dict)
     transient_at: str = "segment"
 
     def splits(self) -> list[str]:
@@ -95,7 +106,7 @@ class Dataset:
         lo, hi = train.min(axis=0), train.max(axis=0)
         width = np.maximum(hi - lo, np.finfo(float).tiny)
         found = []
-        for split in ("validation", "test"):
+        for split in [s for s in self.ranges if s != "train"]:
             for j, name in enumerate(self.input_names):
                 worst = (0.0, -1, -1)
                 for rec, start, stop in self.ranges.get(split, []):
@@ -107,10 +118,11 @@ class Dataset:
                     if excess[k] > worst[0]:
                         worst = (float(excess[k]), rec, start + k)
                 if worst[0] > margin:
+                    columns = self.recordings[worst[1]].input_columns
                     found.append(
                         {
                             "split": split,
-                            "input": name,
+                            "input": columns[j] if columns else name,
                             "excess": worst[0],
                             "recording": self.recordings[worst[1]].name,
                             "sample": worst[2],
@@ -173,15 +185,24 @@ def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], flo
             data, step = resample.uniform(t, data, src.get("resample"), str(path))
             steps.append((step, str(path)))
         segments = src.get("segments") or [(0, data.shape[0])]
-        for k, (a, b) in enumerate(segments):
+        for a, b in segments:
             if not 0 <= a < b <= data.shape[0]:
                 raise DataError(
                     f"segment [{a}, {b}] lies outside the file's {data.shape[0]} samples",
                     str(path),
                     "correct data.segments",
                 )
-            name = path.name if len(segments) == 1 else f"{path.name}[{a}:{b}]"
-            recs.append(Recording(name, data[a:b, :n_in].copy(), data[a:b, n_in:].copy()))
+            name = path.name if len(segments) == 1 and (a, b) == (0, data.shape[0]) else f"{path.name}[{a}:{b}]"
+            recs.append(
+                Recording(
+                    name,
+                    data[a:b, :n_in].copy(),
+                    data[a:b, n_in:].copy(),
+                    offset=int(a),
+                    input_columns=names[:n_in],
+                    output_columns=names[n_in:],
+                )
+            )
     if not steps:
         return recs, None
     first, where = steps[0]
@@ -314,15 +335,25 @@ def _split_bounds(split: dict[str, Any], n: int) -> dict[str, tuple[int, int]]:
     return bounds
 
 
-def load_dataset(spec) -> Dataset:
-    """Read or generate every recording of ``spec.data`` and lay out the splits."""
+#: recordings of one source with its sampling time, input names and output names
+LoadedSource = tuple[list[Recording], float, list[str], list[str]]
+
+
+def load_dataset(spec, sources: Mapping[str, LoadedSource] | None = None) -> Dataset:
+    """Read or generate every recording of ``spec.data`` and lay out the splits.
+
+    ``sources`` replaces the reading with recordings already in memory (the Python API's arrays):
+    ``"data"`` for the main source, optionally ``"validation"`` / ``"test"`` for separate recordings;
+    the spec's own sources are then not read, everything else (splits, transient, noise) applies."""
     data = spec.data.model_dump(mode="python")
     resolve = spec.resolve_path
-    main_recs, st, in_names, out_names = _load_source(data, resolve, "data")
+    main_recs, st, in_names, out_names = sources["data"] if sources else _load_source(data, resolve, "data")
     recordings: list[Recording] = list(main_recs)
     ranges: dict[str, list[Range]] = {s: [] for s in SPLITS}
 
-    separate = {s: data.get(s) for s in ("validation", "test") if data.get(s)}
+    separate: dict[str, Any] = {s: data.get(s) for s in ("validation", "test") if data.get(s)}
+    if sources:
+        separate = {s: sources[s] for s in ("validation", "test") if s in sources}
     split = data.get("split")
     if split is None:
         split = {"train": 0.6, "validation": 0.2, "test": 0.2}
@@ -356,8 +387,10 @@ def load_dataset(spec) -> Dataset:
                 ranges[s].append((i, a, b))
 
     for s, override in separate.items():
-        src = _merge_source(data, override, s)
-        recs, st_s, ins, outs = _load_source(src, resolve, f"data.{s}")
+        if sources:
+            recs, st_s, ins, outs = override
+        else:
+            recs, st_s, ins, outs = _load_source(_merge_source(data, override, s), resolve, f"data.{s}")
         if len(ins) != len(in_names) or len(outs) != len(out_names):
             raise DataError(
                 f"the separate {s} recording has {len(ins)} inputs / {len(outs)} outputs, "
@@ -387,6 +420,7 @@ def load_dataset(spec) -> Dataset:
     )
     _add_noise(ds, data.get("noise"), spec.seed)
     _check_sizes(ds, spec.source)
+    check_signals(ds, spec.source)
     return ds
 
 
@@ -401,7 +435,6 @@ def _add_noise(ds: Dataset, noise: dict[str, Any] | None, seed: int) -> None:
         for rec, start, stop in ds.ranges.get(split, []):
             r = ds.recordings[rec]
             r.y[start:stop] += noise["std"] * clean_std[rec] * rng.standard_normal((stop - start, r.y.shape[1]))
-    ds.noise_std = {s: np.asarray(noise["std"]) for s in noise["splits"]}
 
 
 def _check_sizes(ds: Dataset, source: str) -> None:
@@ -431,7 +464,7 @@ def describe(ds: Dataset) -> list[dict[str, Any]]:
         rows.append(
             {
                 "split": split,
-                "segments": [f"{ds.recordings[r].name}[{a}:{b}]" for r, a, b in ds.ranges[split]],
+                "segments": [ds.recordings[r].span(a, b) for r, a, b in ds.ranges[split]],
                 "samples": sum(b - a for _, a, b in ds.ranges[split]),
                 "scored": ds.n_scored(split),
             }

@@ -48,8 +48,10 @@ def extended_spec(result: Diagnosis, folder: Path) -> dict[str, Any] | None:
     raw = result.extended_spec
     if raw is None:
         return None
+    from ..paths import safe_name
+
     out = dict(raw)
-    name = f"{result.name}-extended"
+    name = f"{safe_name(result.name)}-extended"
     out["name"] = name
     out["output"] = str((folder / f"{name}.h5").resolve())
     return out

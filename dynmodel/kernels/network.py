@@ -53,15 +53,15 @@ def drive(indptr, indices, data, B, c0, a, g, V, x0):
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
-def drive_features(indptr, indices, data, B, c0, a, g, V, x0, direct, F):
-    """Like :func:`drive`, but writes readout features into the preallocated F (n, K):
-    ``[x_t, v_t (when direct), 1]``. Allocation-free: the hot loop of structure optimization."""
+def drive_chunk(indptr, indices, data, B, c0, a, g, V, x, direct, F):
+    """Readout features of the next ``n`` steps, written into the preallocated F (n, K):
+    ``[x_t, v_t (when direct)]``, driven by V (n, n_drive) from the state ``x`` (M,), which is
+    advanced in place to the last state. Chunk after chunk this equals one long :func:`drive`."""
     n = V.shape[0]
     m = c0.shape[0]
     nv = V.shape[1]
     z = np.empty(m)
-    prev = x0.copy()
-    last = F.shape[1] - 1
+    prev = x
     for t in range(n):
         _pre(indptr, indices, data, B, c0, prev, V[t], z)
         row = F[t]
@@ -69,8 +69,125 @@ def drive_features(indptr, indices, data, B, c0, a, g, V, x0, direct, F):
         if direct:
             for j in range(nv):
                 row[m + j] = V[t, j]
-        row[last] = 1.0
         prev = row[:m]
+    if n > 0:
+        x[:] = F[n - 1, :m]
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
+def drive_output(indptr, indices, data, B, c0, a, g, V, x, W, D, w0, out):
+    """Readout ``out[t] = W x_t + D v_t + w0`` (out (n, n_out)) of the network driven by V from
+    the state ``x`` (advanced in place); no state is stored (internal mode, teacher forcing)."""
+    n = V.shape[0]
+    m = c0.shape[0]
+    nv = V.shape[1]
+    n_out = W.shape[0]
+    z = np.empty(m)
+    prev = x.copy()
+    cur = np.empty(m)
+    for t in range(n):
+        _pre(indptr, indices, data, B, c0, prev, V[t], z)
+        _post(a, g, prev, z, cur)
+        for k in range(n_out):
+            acc = w0[k]
+            for i in range(m):
+                acc += W[k, i] * cur[i]
+            for j in range(nv):
+                acc += D[k, j] * V[t, j]
+            out[t, k] = acc
+        tmp = prev
+        prev = cur
+        cur = tmp
+    x[:] = prev
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
+def free_run_span(
+    indptr,
+    indices,
+    data,
+    B,
+    c0,
+    a,
+    g,
+    U,
+    Y,
+    tune_in,
+    mix,
+    W,
+    D,
+    w0,
+    y_rest,
+    lo,
+    hi,
+    clip_lo,
+    clip_hi,
+    x,
+    start,
+    stop,
+    yhat,
+    fb,
+    X,
+):
+    """Samples ``start <= t < stop`` of the external-mode run of :func:`free_run_clipped`, resumable.
+
+    ``x`` (M,) holds the state after sample ``start - 1`` (the rest state when start = 0) and is
+    advanced in place; ``yhat`` and ``fb`` (n, n_out) are the whole run's outputs and fed-back
+    values (rows before ``start`` must hold the earlier samples); X (stop - start, M) receives the
+    states, or has no rows. On divergence at t, ``yhat[t:]`` and ``fb[t + 1:]`` become NaN and t is
+    returned (else -1). Outputs are clipped to [clip_lo, clip_hi] before they are stored, checked
+    and fed back (+-inf: no clipping). Spans run one after the other give exactly one
+    :func:`free_run_clipped`.
+    """
+    m = c0.shape[0]
+    n_in = U.shape[1]
+    n_out = W.shape[0]
+    has_y = Y.shape[0] > 0
+    store = X.shape[0] > 0
+    v = np.empty(n_in + n_out)
+    z = np.empty(m)
+    prev = x.copy()
+    cur = np.empty(m)
+    for t in range(start, stop):
+        for j in range(n_in):
+            v[j] = U[t, j]
+        for k in range(n_out):
+            if tune_in > 0 and t <= tune_in:
+                f = Y[t - 1, k] if t > 0 else Y[0, k]
+            else:
+                f = yhat[t - 1, k] if t > 0 else y_rest[k]
+                if mix > 0.0 and has_y:
+                    f = mix * (Y[t - 1, k] if t > 0 else Y[0, k]) + (1.0 - mix) * f
+            v[n_in + k] = f
+            fb[t, k] = f
+        _pre(indptr, indices, data, B, c0, prev, v, z)
+        _post(a, g, prev, z, cur)
+        if store:
+            X[t - start] = cur
+        bad = False
+        for k in range(n_out):
+            acc = w0[k]
+            for i in range(m):
+                acc += W[k, i] * cur[i]
+            for j in range(n_in + n_out):
+                acc += D[k, j] * v[j]
+            if acc > clip_hi[k]:
+                acc = clip_hi[k]
+            elif acc < clip_lo[k]:
+                acc = clip_lo[k]
+            yhat[t, k] = acc
+            if t >= tune_in and not (lo[k] <= acc <= hi[k]):
+                bad = True
+        if bad:
+            x[:] = cur
+            yhat[t:] = np.nan
+            fb[t + 1 :] = np.nan
+            return t
+        tmp = prev
+        prev = cur
+        cur = tmp
+    x[:] = prev
+    return -1
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
@@ -92,55 +209,38 @@ def free_run_clipped(
     """
     n = U.shape[0]
     m = c0.shape[0]
-    n_in = U.shape[1]
     n_out = W.shape[0]
-    has_y = Y.shape[0] > 0
     X = np.empty((n if store_states else 0, m))
     yhat = np.full((n, n_out), np.nan)
     fb = np.full((n, n_out), np.nan)
-    v = np.empty(n_in + n_out)
-    z = np.empty(m)
-    prev = x0.copy()
-    cur = np.empty(m)
-    diverged = -1
-    for t in range(n):
-        for j in range(n_in):
-            v[j] = U[t, j]
-        for k in range(n_out):
-            if tune_in > 0 and t <= tune_in:
-                f = Y[t - 1, k] if t > 0 else Y[0, k]
-            else:
-                f = yhat[t - 1, k] if t > 0 else y_rest[k]
-                if mix > 0.0 and has_y:
-                    f = mix * (Y[t - 1, k] if t > 0 else Y[0, k]) + (1.0 - mix) * f
-            v[n_in + k] = f
-            fb[t, k] = f
-        _pre(indptr, indices, data, B, c0, prev, v, z)
-        _post(a, g, prev, z, cur)
-        if store_states:
-            X[t] = cur
-        bad = False
-        for k in range(n_out):
-            acc = w0[k]
-            for i in range(m):
-                acc += W[k, i] * cur[i]
-            for j in range(n_in + n_out):
-                acc += D[k, j] * v[j]
-            if acc > clip_hi[k]:
-                acc = clip_hi[k]
-            elif acc < clip_lo[k]:
-                acc = clip_lo[k]
-            yhat[t, k] = acc
-            if t >= tune_in and not (lo[k] <= acc <= hi[k]):
-                bad = True
-        if bad:
-            diverged = t
-            for k in range(n_out):
-                yhat[t, k] = np.nan
-            break
-        tmp = prev
-        prev = cur
-        cur = tmp
+    x = x0.copy()
+    diverged = free_run_span(
+        indptr,
+        indices,
+        data,
+        B,
+        c0,
+        a,
+        g,
+        U,
+        Y,
+        tune_in,
+        mix,
+        W,
+        D,
+        w0,
+        y_rest,
+        lo,
+        hi,
+        clip_lo,
+        clip_hi,
+        x,
+        0,
+        n,
+        yhat,
+        fb,
+        X,
+    )
     return X, yhat, fb, diverged
 
 

@@ -12,12 +12,12 @@ can be bounded (eq. 6.25) and reports the sample where it diverges.
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from dynmodel.data.training import TrainingData
-from dynmodel.family import Family, Progress, Simulation, no_progress
+from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
 
 from . import orders
 from . import pool as pool_mod
@@ -34,7 +34,7 @@ from .estimation import (
     split_error,
 )
 from .onestep import fixed_weights, fos_structure, make_pool, ridge_candidates
-from .params import NarxFamilyParams
+from .params import FreeRunRefinement, LagRange, NarxFamilyParams
 from .selection import free_run_selection
 
 #: finalists of the lag and degree search are re-estimated on the free run (cost mse_inf) only when their
@@ -61,6 +61,31 @@ class Narx(Family):
     )
 
     params: NarxFamilyParams
+
+    def __init__(
+        self,
+        *,
+        lags: dict[str, list[int | LagRange | dict[str, int]]] | None = None,
+        degree: int | None = None,
+        constant: bool = True,
+        terms: list[str] | dict[str, list[str]] | None = None,
+        selection: Literal["one_step", "free_run"] = "one_step",
+        free_run_start: Literal["linear", "constant"] = "linear",
+        max_terms: int | None = None,
+        threshold: float | None = None,
+        stop_on: Literal["free_run", "one_step"] = "free_run",
+        patience: int | None = 20,
+        drop_unstable: bool = True,
+        weights: Literal["lstsq", "recursion"] = "lstsq",
+        ridge: float | Literal["auto"] | None = None,
+        bounds: float | dict[str, tuple[float | None, float | None]] | None = 0.5,
+        start: Literal["drop", "zeros"] = "drop",
+        initial: Literal["measured", "zeros"] = "measured",
+        max_pool: int = 3000,
+        refinement: FreeRunRefinement | dict[str, Any] | None = None,
+    ) -> None:
+        """Parameters as in ``NarxFamilyParams`` (the spec's ``model.params``); see the class help."""
+        super().__init__(**constructor_arguments(locals()))
 
     # ------------------------------------------------------------------ structure
     @property

@@ -93,7 +93,7 @@ def fos_structure(
             Pv=lazy,
             yv=val.Y[:, k] if lazy is not None else None,
             patience=p.patience or 1,
-            score=score,
+            validation=score,
         )
         best = path.best
         if best == 0:

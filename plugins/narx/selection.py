@@ -154,7 +154,7 @@ def _linear_start(
             float(y @ y),
             forced=forced,
             max_terms=min(limit, len(linear)),
-            score=score,
+            validation=score,
             patience=len(linear),
         )
         kept = path.order[: max(path.best, 1)]
