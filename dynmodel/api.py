@@ -96,7 +96,7 @@ def fit_arrays(
     y: Any,
     *,
     validation: float | tuple[Any, Any] | None = 0.2,
-    cost: str = "mse1",
+    cost: str | None = None,
     seed: int = 0,
     sampling_time: float = 1.0,
     input_names: Sequence[str] | None = None,
@@ -133,6 +133,8 @@ def fit_arrays(
             "fit",
             "pass validation=0.2, validation=(u_val, y_val) or validation=None",
         )
+    if cost is None:  # as a spec without cost: the family's own default
+        cost = getattr(family, "default_cost", "mse1")
     if cost not in ("mse1", "mse_inf"):
         raise ParameterError(f"unknown cost '{cost}'", "fit", "use cost='mse1' (one-step) or cost='mse_inf' (free run)")
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:

@@ -153,7 +153,7 @@ def _fit_on_arrays(
     y: Any,
     *,
     validation: float | tuple[Any, Any] | None = 0.2,
-    cost: Literal["mse1", "mse_inf"] = "mse1",
+    cost: Literal["mse1", "mse_inf"] | None = None,
     seed: int = 0,
     sampling_time: float = 1.0,
     input_names: Sequence[str] | None = None,
@@ -175,7 +175,8 @@ def _fit_on_arrays(
     None (the whole data trains; families that select on a validation split then refuse).
     ``cost``, ``seed`` and the remaining keywords are the spec's ``cost``, ``seed`` and ``data``
     keys (scaling, transient, delay lines, derived inputs, detrending), applied exactly as
-    ``dynmodel fit`` applies them. Channel names default to ``u`` / ``y`` (one channel) or ``u0``,
+    ``dynmodel fit`` applies them (``cost`` None: the family's :attr:`default_cost`, as a spec
+    without ``cost:``). Channel names default to ``u`` / ``y`` (one channel) or ``u0``,
     ``u1``, ... ``progress``: a callback ``(stage, fraction, message)`` or True for progress on stderr.
 
     Afterwards ``model_`` holds the :class:`~dynmodel.model.FittedModel` (preprocessing, metrics of
@@ -218,6 +219,9 @@ class Family(ABC):
     Params: ClassVar[type[FamilyParams]] = FamilyParams
     #: what to try when a free run diverges (the fix of the one-line error)
     stability_hint: ClassVar[str] = "use cost: mse_inf"
+    #: the cost a spec without ``cost:`` fits with ('mse1' or 'mse_inf'): what the family's estimation
+    #: does best for a model that is evaluated in free run
+    default_cost: ClassVar[str] = "mse1"
     #: does ``fit`` draw random numbers (network weights, annealing moves)? Then a result depends on the
     #: seed, and ``dynmodel diagnose`` repeats fits over seeds to measure a gain's uncertainty
     stochastic: ClassVar[bool] = True

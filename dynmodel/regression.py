@@ -153,7 +153,9 @@ class FosPath:
     best: int  # number of terms kept
 
 
-#: validation error of a FOS model: (selected pool indices, their coefficients) -> mean squared error
+#: validation error of a FOS model: (selected pool indices, their coefficients) -> an error to
+#: minimise (inf when the model cannot be evaluated), e.g. the mean squared error of the validation
+#: rows (from their moments) or of a NARX model's free run on the validation split
 ValidationError = Callable[[list[int], np.ndarray], float]
 
 
@@ -176,7 +178,7 @@ class _Stopper:
         if self.validation is None:
             self.best_m = len(order)
             return False
-        err = self.validation(order, coef)
+        err = float(self.validation(list(order), coef))
         self.errors.append(err)
         if err < self.best_val * (1 - 1e-12) or forced:
             self.best_val, self.best_m, self.since_best = err, len(order), 0
@@ -221,7 +223,7 @@ def fos_select(
     validation pool ``Pv`` and targets ``yv``, after ``patience`` terms without a new lowest
     validation error (``patience=1``: stop at the first rise). The kept size is the best one.
     ``validation(order, coef)`` may give that error instead of ``Pv``, ``yv`` (e.g. from the
-    accumulated moments of the validation rows, :mod:`dynmodel.moments`).
+    accumulated moments of the validation rows, :mod:`dynmodel.moments`, or the error of a free run).
     ``ties``: candidates whose error reduction is within this relative tolerance of the largest
     count as equal and the first of them in pool order is chosen (e.g. the lower-degree monomial).
     """
@@ -250,7 +252,7 @@ def fos_select(
         valid = available & (Dmm > tol * np.maximum(diag, 1e-300))
         if not valid.any():
             break
-        i = _next_term(m, forced, valid, lambda: Ct * Ct / np.where(valid, Dmm, 1.0), threshold, yy, ties)
+        i = _next_term(order, forced, valid, lambda: Ct * Ct / np.where(valid, Dmm, 1.0), threshold, yy, ties)
         if i is None:
             break
         alpha[m, :m] = Dt[:m, i] / D[:m]
@@ -262,7 +264,7 @@ def fos_select(
         A = np.eye(m + 1) + np.tril(alpha[: m + 1, : m + 1], -1)
         coef = _solve_unit_upper(A.T, beta)
         coef_path.append(coef)
-        if stopper.add(order, coef, m < len(forced)):
+        if stopper.add(order, coef, i in forced):
             break
     return stopper.path(order, coef_path, Q)
 
@@ -307,7 +309,7 @@ def fos_select_qr(
         valid = available & (d > tol * np.maximum(norm0, 1e-300)) & (d > 0)
         if not valid.any():
             break
-        i = _next_term(m, forced, valid, lambda: (V.T @ r) ** 2 / np.where(valid, d, 1.0), threshold, yy)
+        i = _next_term(order, forced, valid, lambda: (V.T @ r) ** 2 / np.where(valid, d, 1.0), threshold, yy)
         if i is None:
             break
         q = V[:, i] / np.sqrt(d[i])
@@ -322,20 +324,30 @@ def fos_select_qr(
         U = T[: m + 1][:, order]  # upper triangular: the chosen columns = Q_sel U
         coef = scipy.linalg.solve_triangular(U, beta[: m + 1])
         coef_path.append(coef)
-        if stopper.add(order, coef, m < len(forced)):
+        if stopper.add(order, coef, i in forced):
             break
     return stopper.path(order, coef_path, Q)
 
 
 def _next_term(
-    m: int, forced: tuple[int, ...], valid: np.ndarray, reduction, threshold: float | None, yy: float, ties: float = 0.0
+    chosen: list[int],
+    forced: tuple[int, ...],
+    valid: np.ndarray,
+    reduction,
+    threshold: float | None,
+    yy: float,
+    ties: float = 0.0,
 ) -> int | None:
-    """Index of the m-th FOS term, or None to stop: the forced terms first, then the candidate with
+    """Index of the next FOS term, or None to stop: the forced terms first (skipping those numerically in
+    the span of the terms already chosen), then the candidate with
     the largest error reduction Q = C^2 / D (appendix A.2.2), the first of the nearly best ones in pool
     order when ``ties`` > 0; stop when nothing is left or the best reduction falls below
     ``threshold`` times y'y. ``reduction()`` gives Q for every candidate."""
-    if m < len(forced):
-        return forced[m] if valid[forced[m]] else None
+    pending = [f for f in forced if f not in chosen]
+    while pending and not valid[pending[0]]:  # a forced term in the span of those chosen adds nothing
+        pending.pop(0)
+    if pending:
+        return pending[0]
     score = np.where(valid, reduction(), -np.inf)
     i = int(np.argmax(score))
     if ties > 0.0:

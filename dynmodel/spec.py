@@ -329,8 +329,10 @@ def spec_model() -> type[BaseModel]:
         name: str = Field("model", description="experiment name, used for the default output file")
         data: DataSpec  # type: ignore[valid-type]
         model: ModelSpec  # type: ignore[valid-type]
-        cost: Literal["mse1", "mse_inf"] = Field(
-            "mse1", description="mse1: one-step error; mse_inf: free-running error"
+        cost: Optional[Literal["mse1", "mse_inf"]] = Field(
+            None,
+            description="mse1: one-step error; mse_inf: free-running error; default: the family's own "
+            "(narx: mse_inf, the networks: mse1)",
         )
         evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec)
         seed: int = Field(0, ge=0, description="seed of every random choice in fitting (networks, noise)")
@@ -338,6 +340,12 @@ def spec_model() -> type[BaseModel]:
 
         _base_dir: Path = PrivateAttr(default_factory=Path.cwd)
         _source: str = PrivateAttr(default="<spec>")
+
+        @model_validator(mode="after")
+        def _family_cost(self):
+            if self.cost is None:
+                self.cost = getattr(fams.get(self.model.family), "default_cost", "mse1")
+            return self
 
         @property
         def base_dir(self) -> Path:

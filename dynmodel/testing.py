@@ -225,6 +225,7 @@ def _declaration(case: FamilyCase) -> None:
     require(isinstance(cls.name, str) and cls.name, "a family sets its id in the class attribute `name`")
     require(isinstance(cls.description, str) and cls.description, "a family describes itself in `description`")
     require(isinstance(cls.stochastic, bool), "`stochastic` is True or False")
+    require(cls.default_cost in ("mse1", "mse_inf"), "`default_cost` is 'mse1' or 'mse_inf'")
     require(
         isinstance(cls.Params, type) and issubclass(cls.Params, BaseModel),
         "`Params` is a pydantic model (subclass dynmodel.family.FamilyParams)",
@@ -417,7 +418,7 @@ def _test_outputs_unread(case: FamilyCase) -> None:
     a, b = int(0.6 * n), int(0.8 * n)
     data = ArrayData(input=["u"], output=["y"], split={"train": (0, a), "test": (a, b), "validation": (b, n)})
     fam = case.new()
-    spec = ArraySpec(fam, data, case.fit_options.get("cost", "mse1"), 0, EvaluationSpec())
+    spec = ArraySpec(fam, data, case.fit_options.get("cost", fam.default_cost), 0, EvaluationSpec())
     rec = Recording("contract", case.u[:, None].copy(), case.y[:, None].copy())
     ds = load_dataset(spec, {"data": ([rec], 1.0, ["u"], ["y"])})
     try:

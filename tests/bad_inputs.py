@@ -251,12 +251,14 @@ def _divergent_internal(folder: Path) -> None:
     write_csv(folder / "train_m.csv", {"u": 0.25 * u, "y": 0.25 * y})
     write_csv(folder / "test_mm.csv", {"u": 250.0 * ut, "y": 0.25 * yt})
     spec = base_spec("train_m.csv", split={"train": 0.8, "validation": 0.2}, test={"path": "test_mm.csv"})
-    spec["model"]["params"] = {"size": 40, "mode": "internal"}
+    # bounds: null: without the default output clip (which holds this output in range, issue 14)
+    spec["model"]["params"] = {"size": 40, "mode": "internal", "bounds": None}
     write_spec(folder, "s.yaml", spec)
 
 
 def _diverging_external(cost: str) -> Callable[[Path], None]:
-    """Plain least squares on every state without tune-in: the fed-back output explodes at once."""
+    """Plain least squares on every state without tune-in and without the output clip (bounds: null,
+    the clip would feed back bounded values): the fed-back output explodes at once."""
 
     def setup(folder: Path) -> None:
         spec = base_spec()
@@ -266,6 +268,7 @@ def _diverging_external(cost: str) -> Callable[[Path], None]:
             "tune_in": 0,
             "readout": {"solver": "lstsq", "direct": False},
             "refinement": {"max_iter": 3},
+            "bounds": None,
         }
         spec["cost"] = cost
         write_spec(folder, "s.yaml", spec)

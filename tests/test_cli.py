@@ -50,12 +50,12 @@ def test_fit_predict_inspect_round_trip(cli, tmp_path, quick_spec):
     np.testing.assert_array_equal(pred[:warm, 2], 1.0)
     np.testing.assert_array_equal(pred[warm:, 2], 0.0)
     np.testing.assert_allclose(pred[:warm, 1], y[:warm], rtol=1e-9)
-    assert "the first 100 rows are the measured tune-in" in r.stderr
+    assert "the first 20 rows are the measured tune-in" in r.stderr
 
     r = cli("inspect", report["model"], "--json", tmp_path / "inspect.json")
     assert r.exit_code == 0 and "sigma(C)" in r.stdout and "esn" in r.stdout
     summary = json.loads((tmp_path / "inspect.json").read_text())
-    assert summary["model"]["mode"] == "external" and summary["tune_in_samples"] == 100
+    assert summary["model"]["mode"] == "external" and summary["tune_in_samples"] == 20  # the default tune-in
 
 
 def test_out_overrides_the_spec_output(cli, tmp_path, quick_spec):
@@ -69,7 +69,7 @@ def test_external_model_asks_for_tune_in_outputs(cli, tmp_path, quick_spec):
     write_csv(tmp_path / "only_u.csv", {"u": u})
     r = cli("predict", tmp_path / "quick.h5", "--input", tmp_path / "only_u.csv")
     assert r.exit_code == 2
-    assert "tunes in on the first 100 measured samples of output column(s) 'y'" in r.stderr
+    assert "tunes in on the first 20 measured samples of output column(s) 'y'" in r.stderr  # the default tune-in
     assert "--tune-in" in r.stderr and "Traceback" not in r.stderr + r.stdout
     write_csv(tmp_path / "tune.csv", {"y": narx(500, 3)[1]})
     r = cli("predict", tmp_path / "quick.h5", "--input", tmp_path / "only_u.csv", "--tune-in", tmp_path / "tune.csv")

@@ -243,15 +243,23 @@ def test_detectors_are_plugins(cli, monkeypatch, tmp_path):
 
 
 def test_default_narx_that_loses_track_on_gms_friction_is_repaired_by_free_run_selection(tmp_path):
-    """A new user's first try: GMS friction (position -> force) with the default NARX and cost mse_inf.
-    One-step FOS keeps only force[t-1], force[t-2] (one-step NMSE about 1e-3 %), whose free run ignores
-    the input (NMSE about 100 %). The diagnosis names free-run-instability, measures the stabilisers (the
-    structure selected on the free-running error among them) with the other causes' proposals, and the
-    rounds bring the test NMSE below 20 %."""
+    """A new user's first try before issue 14: GMS friction (position -> force) with the then default NARX
+    (degree 2, lags 0-2 / 1-2, stopped by the one-step validation error) and cost mse_inf. One-step FOS
+    keeps only force[t-1], force[t-2] (one-step NMSE about 1e-3 %), whose free run ignores the input (NMSE
+    about 100 %). The diagnosis names free-run-instability, measures the stabilisers (the structure
+    selected on the free-running error among them) with the other causes' proposals, and the rounds bring
+    the test NMSE below 20 %."""
+    old_default = {
+        "degree": 2,
+        "lags": {"position": [0, 1, 2], "force": [1, 2]},
+        "stop_on": "one_step",
+        "patience": 1,
+        "bounds": None,
+    }
     spec = {
         "name": "gms",
         "data": {"generator": "gms", "n": 12000, "seed": 0, "split": {"train": 0.6, "validation": 0.2, "test": 0.2}},
-        "model": {"family": "narx"},
+        "model": {"family": "narx", "params": old_default},
         "cost": "mse_inf",
         "seed": 0,
     }

@@ -54,10 +54,13 @@ def test_pneumatic_seal_extrapolating_to_a_higher_pressure_diverges(cli, tmp_pat
     assert top["cause"] == "free-run-instability"
     ev = top["evidence"]
     assert ev["diverged"] and ev["split"] == "test" and "7bar" in ev["recording"]
-    # fitted at 1-5 bar the model is excellent on validation; nothing measured there can tell the stabilizers
-    # apart, so no round is accepted, and the gain says what the test split shows
+    # fitted at 1-5 bar the model is excellent on validation; of the stabilizers, the terms selected on the
+    # free-running error (grown from the linear model since issue 14) validate best, and they stay bounded at
+    # 7 bar, where the one-step structure diverges; the gain says what the test split shows
     assert summary["baseline"]["metrics"]["validation"]["nmse"] < 0.5
-    assert not summary["extended"]["rounds"][0]["accepted"]
+    first = summary["extended"]["rounds"][0]
+    assert first["accepted"] and first["chosen"]["patch"]["model"]["params"]["selection"] == "free_run"
+    assert first["chosen"]["metrics"]["test"]["nmse"] is not None  # bounded where the baseline diverged
     assert summary["gain"]["baseline_diverged_on_test"] and summary["gain"]["relative_reduction"] is None
     assert (tmp_path / "rep" / "index.md").exists()
 

@@ -17,7 +17,7 @@ from dynmodel_plugins.annealed_rnn import AnnealedRnn
 from dynmodel_plugins.annealed_rnn.search import GRAM_CUTOFF, Evaluator
 from dynmodel_plugins.esn import EchoStateNetwork
 from dynmodel_plugins.esn.network import build_network
-from dynmodel_plugins.esn.streaming import RunBuffers, free_run_moments
+from dynmodel_plugins.esn.streaming import RunBuffers, free_run_moments, free_runs
 from dynmodel_plugins.lorenz_net.elements import simulate_network
 from dynmodel_plugins.lorenz_net.params import LorenzNetParams
 from dynmodel_plugins.lorenz_net.search import initial_state
@@ -145,14 +145,17 @@ def test_streamed_free_run_moments_equal_the_stored_free_run(small_chunks):
     fam = EchoStateNetwork(**SMALL, mode="external", readout={"solver": "lstsq"})
     fam.fit(data, rng=family_rng(4))
     lo, hi = data.output_bounds()
-    args = dict(tune_in=30, W=fam.W_, D=fam.D_, w0=fam.w0_, y_rest=fam.y_rest_, lo=lo, hi=hi)
+    clip_lo, clip_hi = fam._clip
+    args = dict(
+        tune_in=30, W=fam.W_, D=fam.D_, w0=fam.w0_, y_rest=fam.y_rest_, lo=lo, hi=hi, clip_lo=clip_lo, clip_hi=clip_hi
+    )
     for mix in (0.0, 0.4):
         mom = free_run_moments(fam.network_, data, mix, True, ("train", "validation"), RunBuffers(data), **args)
         feats = []
         for s in data.series:
-            X, _, fb, div = kernels.free_run(
+            X, _, fb, div = kernels.free_run_clipped(
                 *fam.network_.kernel_args(), s.u, s.y, 30, mix, fam.W_, fam.D_, fam.w0_, fam.y_rest_, lo, hi,
-                np.zeros(fam.network_.size), True,
+                np.zeros(fam.network_.size), True, clip_lo, clip_hi,
             )  # fmt: skip
             assert div == -1
             feats.append(np.hstack([X, s.u, fb]))
@@ -177,9 +180,9 @@ def test_refined_fit_equals_the_refinement_on_stored_states(small_chunks, monkey
     lo, hi = data.output_bounds()
     feats = []
     for s in data.series:
-        X, _, fb, _ = kernels.free_run(
+        X, _, fb, _ = kernels.free_run_clipped(
             *one_step.network_.kernel_args(), s.u, s.y, 30, 0.0, one_step.W_, one_step.D_, one_step.w0_,
-            one_step.y_rest_, lo, hi, np.zeros(20), True,
+            one_step.y_rest_, lo, hi, np.zeros(20), True, *one_step._clip,
         )  # fmt: skip
         feats.append(np.hstack([X, s.u, fb]))
     fit = regression.lstsq(data.stack("train", feats), data.targets("train"))
@@ -188,6 +191,68 @@ def test_refined_fit_equals_the_refinement_on_stored_states(small_chunks, monkey
         np.testing.assert_allclose(refined._readout_vector(), new, rtol=0, atol=1e-9 * np.abs(new).max())
     else:
         np.testing.assert_array_equal(refined._readout_vector(), one_step._readout_vector())
+
+
+def _loop_free_run(net, s, tune_in, mix, W, D, w0, y_rest, clip_lo, clip_hi):
+    """The external-mode run with the output clip as a plain numpy loop: the clipped output is the
+    one recorded and fed back. Returns states, outputs and fed-back values."""
+    C, B = net.C.toarray(), net.B
+    x = np.zeros(net.size)
+    X, yhat, fb = np.empty((s.n, net.size)), np.empty((s.n, W.shape[0])), np.empty((s.n, W.shape[0]))
+    for t in range(s.n):
+        if tune_in and t <= tune_in:
+            f = s.y[t - 1] if t > 0 else s.y[0]
+        else:
+            f = yhat[t - 1] if t > 0 else y_rest
+            if mix > 0:
+                f = mix * (s.y[t - 1] if t > 0 else s.y[0]) + (1 - mix) * f
+        v = np.concatenate([s.u[t], f])
+        x = net.a * x + net.g * np.tanh(C @ x + net.c0 + B @ v)
+        X[t], fb[t] = x, f
+        yhat[t] = np.clip(W @ x + D @ v + w0, clip_lo, clip_hi)
+    return X, yhat, fb
+
+
+def test_streamed_clipped_free_run_equals_a_plain_loop(small_chunks):
+    """The output clip (esn ``bounds``) inside the chunked external run: the model's free run, the
+    refinement's free-run outputs and its streamed moments equal a plain loop that clips the output
+    and feeds the clipped value back, with a clip that is active."""
+    data = _data()
+    fam = EchoStateNetwork(**SMALL, mode="external", readout={"solver": "lstsq"})
+    fam.fit(data, rng=family_rng(6))
+    y = data.targets("train")[:, 0]
+    fam.clip_lo_, fam.clip_hi_ = np.quantile(y, [0.2]), np.quantile(y, [0.8])  # tighter than the data: active
+    clip = fam._clip
+    run = fam._run_args()
+    for mix in (0.0, 0.4):
+        loops = [
+            _loop_free_run(fam.network_, s, 30, mix, fam.W_, fam.D_, fam.w0_, fam.y_rest_, *clip) for s in data.series
+        ]
+        assert any((yl[31:] == clip[1]).any() and (yl[31:] == clip[0]).any() for _, yl, _ in loops)
+        buffers = RunBuffers(data)
+        mom = free_run_moments(fam.network_, data, mix, True, ("train", "validation"), buffers, **run)
+        assert mom is not None
+        feats = []
+        for k, ((X, yl, fl), s, yb, fbb) in enumerate(zip(loops, data.series, buffers.yhat, buffers.fb)):
+            end = max(b for segs in data.segments.values() for kk, _, b in segs if kk == k)  # rows the fit runs
+            np.testing.assert_allclose(yb[:end], yl[:end], rtol=0, atol=1e-10)
+            np.testing.assert_allclose(fbb[1:end], fl[1:end], rtol=0, atol=1e-10)
+            feats.append(np.hstack([X, s.u, fl]))
+        _assert_same_fit(
+            readout.lstsq(mom["train"]), regression.lstsq(data.stack("train", feats), data.targets("train"))
+        )
+        np.testing.assert_allclose(
+            mom["validation"].mean[:-1], data.stack("validation", feats).mean(axis=0), rtol=0, atol=1e-10
+        )
+    # the pure free run (mix 0): the refinement's runs and the model's simulate
+    buffers = RunBuffers(data)
+    assert free_runs(fam.network_, data, 0.0, buffers, **run)
+    for s, yb in zip(data.series, buffers.yhat):
+        _, yl, _ = _loop_free_run(fam.network_, s, 30, 0.0, fam.W_, fam.D_, fam.w0_, fam.y_rest_, *clip)
+        np.testing.assert_allclose(yb, yl, rtol=0, atol=1e-10)
+        sim = fam.simulate(s.u, s.y[:30])
+        assert sim.diverged_at is None
+        np.testing.assert_allclose(sim.y, yl, rtol=0, atol=1e-10)
 
 
 def test_chunked_kernels_equal_one_long_run():
@@ -209,15 +274,25 @@ def test_chunked_kernels_equal_one_long_run():
     U, Y = V[:, :2].copy(), V[:, 2:].copy()
     W1, D1 = 0.05 * W[:1], 0.1 * D[:1]
     lo, hi = np.array([-1e9]), np.array([1e9])
-    for tune, mix in ((0, 0.0), (40, 0.0), (40, 0.3)):
-        Xr, yr, fr, div = kernels.free_run(
-            *args, U, Y, tune, mix, W1, D1, w0[:1], np.zeros(1), lo, hi, np.zeros(20), True
+    for tune, mix, clip in ((0, 0.0, np.inf), (40, 0.0, np.inf), (40, 0.3, np.inf), (0, 0.0, 0.3), (40, 0.3, 0.3)):
+        clip_lo, clip_hi = np.array([-clip]), np.array([clip])
+        Xr, yr, fr, div = kernels.free_run_clipped(
+            *args, U, Y, tune, mix, W1, D1, w0[:1], np.zeros(1), lo, hi, np.zeros(20), True, clip_lo, clip_hi
         )
+        if clip == np.inf:  # no clip: the unclipped kernel
+            Xu, yu, fu, _ = kernels.free_run(
+                *args, U, Y, tune, mix, W1, D1, w0[:1], np.zeros(1), lo, hi, np.zeros(20), True
+            )
+            np.testing.assert_array_equal(yu, yr)
+            np.testing.assert_array_equal(Xu, Xr)
+        else:
+            assert (np.abs(yr) == clip).any()  # the clip is active
         yhat, fb, Xs, x = np.empty((700, 1)), np.empty((700, 1)), np.empty((700, 20)), np.zeros(20)
         for a, b in ((0, 41), (41, 42), (42, 700)):
             d = kernels.free_run_span(
-                *args, U, Y, tune, mix, W1, D1, w0[:1], np.zeros(1), lo, hi, x, a, b, yhat, fb, Xs[a:b]
-            )
+                *args, U, Y, tune, mix, W1, D1, w0[:1], np.zeros(1), lo, hi, clip_lo, clip_hi, x, a, b, yhat, fb,
+                Xs[a:b],
+            )  # fmt: skip
             assert d == -1
         np.testing.assert_array_equal(yhat, yr)
         np.testing.assert_array_equal(fb, fr)

@@ -270,14 +270,20 @@ def test_an_output_folder_holding_another_sweep_is_left_alone(tmp_path, spec_fil
 
 def test_results_failing_and_diverging_points_are_recorded(tmp_path):
     # an external ESN of 100 elements on 360 training samples, plain least squares on every state without
-    # tune-in: its fed-back output explodes at once, whatever the seed (see test_cli); narx with a lag
-    # longer than the data: fails in fit; the others fit
+    # tune-in and without the output clip (bounds: null): its fed-back output explodes at once, whatever the
+    # seed (see test_cli); narx with a lag longer than the data: fails in fit; the others fit
     write_yaml(tmp_path / "spec.yaml", tiny())
     grid = {
         "zip": {
             "model.params": [
                 {"size": 20},
-                {"size": 100, "mode": "external", "tune_in": 0, "readout": {"solver": "lstsq", "direct": False}},
+                {
+                    "size": 100,
+                    "mode": "external",
+                    "tune_in": 0,
+                    "readout": {"solver": "lstsq", "direct": False},
+                    "bounds": None,
+                },
                 {"lags": {"u": [0, 1], "y": [1, 900]}},
                 {"lags": {"u": [0, 1], "y": [1, 2]}},
             ],

@@ -103,15 +103,41 @@ def drive_output(indptr, indices, data, B, c0, a, g, V, x, W, D, w0, out):
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
 def free_run_span(
-    indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x, start, stop, yhat, fb, X
+    indptr,
+    indices,
+    data,
+    B,
+    c0,
+    a,
+    g,
+    U,
+    Y,
+    tune_in,
+    mix,
+    W,
+    D,
+    w0,
+    y_rest,
+    lo,
+    hi,
+    clip_lo,
+    clip_hi,
+    x,
+    start,
+    stop,
+    yhat,
+    fb,
+    X,
 ):
-    """Samples ``start <= t < stop`` of the external-mode run of :func:`free_run`, resumable.
+    """Samples ``start <= t < stop`` of the external-mode run of :func:`free_run_clipped`, resumable.
 
     ``x`` (M,) holds the state after sample ``start - 1`` (the rest state when start = 0) and is
     advanced in place; ``yhat`` and ``fb`` (n, n_out) are the whole run's outputs and fed-back
     values (rows before ``start`` must hold the earlier samples); X (stop - start, M) receives the
     states, or has no rows. On divergence at t, ``yhat[t:]`` and ``fb[t + 1:]`` become NaN and t is
-    returned (else -1). Spans run one after the other give exactly one :func:`free_run`.
+    returned (else -1). Outputs are clipped to [clip_lo, clip_hi] before they are stored, checked
+    and fed back (+-inf: no clipping). Spans run one after the other give exactly one
+    :func:`free_run_clipped`.
     """
     m = c0.shape[0]
     n_in = U.shape[1]
@@ -145,6 +171,10 @@ def free_run_span(
                 acc += W[k, i] * cur[i]
             for j in range(n_in + n_out):
                 acc += D[k, j] * v[j]
+            if acc > clip_hi[k]:
+                acc = clip_hi[k]
+            elif acc < clip_lo[k]:
+                acc = clip_lo[k]
             yhat[t, k] = acc
             if t >= tune_in and not (lo[k] <= acc <= hi[k]):
                 bad = True
@@ -161,14 +191,17 @@ def free_run_span(
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
-def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states):
+def free_run_clipped(
+    indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states, clip_lo, clip_hi
+):
     """External-mode run: the network is fed its own past output.
 
     Drive ``v_t = [u_t, f_t]`` with feedback ``f_t``:
       * ``t <= tune_in`` (tune-in): measured ``y_{t-1}`` (``y_0`` at t = 0);
       * afterwards ``mix * y_{t-1} + (1 - mix) * yhat_{t-1}`` (``mix`` = 0: pure free run;
         0 < mix < 1: the error-propagation schedule of thesis 6.3.2, needs all of ``Y``).
-    Output ``yhat_t = W x_t + D v_t + w0``. A run whose output leaves [lo, hi] (or is not
+    Output ``yhat_t = W x_t + D v_t + w0``, clipped to [clip_lo, clip_hi] (eq. 6.25; the clipped
+    value is the one fed back). A run whose output leaves [lo, hi] (or is not
     finite) after the tune-in stops; the remaining outputs are NaN and the sample index is
     returned (else -1). Outputs during the tune-in are not fed back and are not checked.
 
@@ -182,9 +215,42 @@ def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y
     fb = np.full((n, n_out), np.nan)
     x = x0.copy()
     diverged = free_run_span(
-        indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x, 0, n, yhat, fb, X
+        indptr,
+        indices,
+        data,
+        B,
+        c0,
+        a,
+        g,
+        U,
+        Y,
+        tune_in,
+        mix,
+        W,
+        D,
+        w0,
+        y_rest,
+        lo,
+        hi,
+        clip_lo,
+        clip_hi,
+        x,
+        0,
+        n,
+        yhat,
+        fb,
+        X,
     )
     return X, yhat, fb, diverged
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
+def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states):
+    """:func:`free_run_clipped` without clipping."""
+    inf = np.full(W.shape[0], np.inf)
+    return free_run_clipped(
+        indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states, -inf, inf
+    )
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")

@@ -167,6 +167,8 @@ class Evaluator:
         self.external = p.mode == "external"
         self.lo, self.hi = data.output_bounds()
         self.y_rest = np.nanmean(data.targets("train"), axis=0)
+        inf = np.full(data.n_outputs, np.inf)
+        self._no_clip = (-inf, inf)  # annealed-rnn does not clip its output (no `bounds` parameter)
         self.Yv = data.targets("validation")
         self.var_v = np.maximum(np.var(self.Yv, axis=0), 1e-300)
         self.n_drive = drives[0].shape[1]
@@ -335,6 +337,8 @@ class Evaluator:
                 self.y_rest,
                 self.lo,
                 self.hi,
+                self._no_clip[0],
+                self._no_clip[1],
                 x,
                 0,
                 s.n,

@@ -61,15 +61,16 @@ class EchoStateNetwork(Family):
         size: int = 200,
         mode: Literal["internal", "external"] = "internal",
         connectivity: float | None = None,
-        input_connectivity: float = 0.1,
+        input_connectivity: float = 0.5,
         bias_connectivity: float = 0.8,
         input_scale: float = 1.0,
         bias_scale: float = 1.0,
         feedback_scale: float = 1.0,
         scale: Scale | dict[str, Any] | None = None,
-        relaxation: float | tuple[float, float] = 0.0,
-        relaxation_gain: bool = False,
-        tune_in: int = 100,
+        relaxation: float | tuple[float, float] = (0.0, 0.99),
+        relaxation_gain: bool = True,
+        tune_in: int = 20,
+        bounds: float | None = 0.5,
         readout: Readout | dict[str, Any] | None = None,
         refinement: Refinement | dict[str, Any] | None = None,
         weights: Weights | dict[str, Any] | None = None,
@@ -149,8 +150,23 @@ class EchoStateNetwork(Family):
     def _prepare(self, data: TrainingData) -> None:
         self.n_inputs_ = data.n_inputs
         self.n_outputs_ = data.n_outputs
-        self.y_rest_ = np.nanmean(data.targets("train"), axis=0)
+        y = data.targets("train")
+        self.y_rest_ = np.nanmean(y, axis=0)
         self._bounds = data.output_bounds()
+        self.clip_lo_ = np.full(self.n_outputs_, -np.inf)
+        self.clip_hi_ = np.full(self.n_outputs_, np.inf)
+        m = getattr(self.params, "bounds", None)  # families built on this one may not clip
+        if m is not None:
+            lo, hi = np.nanmin(y, axis=0), np.nanmax(y, axis=0)
+            self.clip_lo_, self.clip_hi_ = lo - m * (hi - lo), hi + m * (hi - lo)
+
+    @property
+    def _clip(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = getattr(self, "clip_lo_", None)
+        if lo is None:  # a model saved before clipping existed
+            inf = np.full(self.n_outputs_, np.inf)
+            return -inf, inf
+        return self.clip_lo_, self.clip_hi_
 
     def training_drives(self, data: TrainingData) -> list[np.ndarray]:
         """Per series: the drive in training (input, plus the measured past output in external mode)."""
@@ -187,9 +203,20 @@ class EchoStateNetwork(Family):
         return self
 
     def _run_args(self) -> dict[str, Any]:
-        """Readout and divergence band of the external-mode runs in training."""
+        """Readout, divergence band and output clip of the external-mode runs in training."""
         lo, hi = self._bounds
-        return dict(tune_in=self.params.tune_in, W=self.W_, D=self.D_, w0=self.w0_, y_rest=self.y_rest_, lo=lo, hi=hi)
+        clip_lo, clip_hi = self._clip
+        return dict(
+            tune_in=self.params.tune_in,
+            W=self.W_,
+            D=self.D_,
+            w0=self.w0_,
+            y_rest=self.y_rest_,
+            lo=lo,
+            hi=hi,
+            clip_lo=clip_lo,
+            clip_hi=clip_hi,
+        )
 
     def _free_run_error(self, data: TrainingData, buffers: RunBuffers) -> float:
         """Mean NMSE (fraction) over outputs of the pure free run on validation (else training) rows."""
@@ -255,8 +282,9 @@ class EchoStateNetwork(Family):
         self.check_fitted()
         u = np.ascontiguousarray(u, dtype=np.float64)
         if not self.external:
-            # no feedback: the output is a static map of bounded states and cannot diverge
-            return Simulation(output_of(self.network_, u, self.W_, self.D_, self.w0_), None)
+            # no feedback: the output is a static map of bounded states; clipped (eq. 6.25) because
+            # the readout extrapolates linearly in the direct inputs and in states never seen
+            return Simulation(np.clip(output_of(self.network_, u, self.W_, self.D_, self.w0_), *self._clip), None)
         tune = min(self.params.tune_in, u.shape[0])
         if tune > 0 and (y_measured is None or len(y_measured) < tune):
             have = 0 if y_measured is None else len(y_measured)
@@ -265,7 +293,7 @@ class EchoStateNetwork(Family):
             )
         Y = np.zeros((0, self.n_outputs_)) if tune == 0 else np.ascontiguousarray(y_measured[:tune], dtype=np.float64)
         lo, hi = bounds if bounds is not None else (np.full(self.n_outputs_, -np.inf), np.full(self.n_outputs_, np.inf))
-        _, y, _, div = kernels.free_run(
+        _, y, _, div = kernels.free_run_clipped(
             *self.network_.kernel_args(),
             u,
             Y.reshape(-1, self.n_outputs_),
@@ -279,6 +307,7 @@ class EchoStateNetwork(Family):
             hi,
             np.zeros(self.network_.size),
             False,
+            *self._clip,
         )
         return Simulation(y, None if div < 0 else int(div))
 
@@ -332,6 +361,8 @@ class EchoStateNetwork(Family):
             "D": self.D_,
             "w0": self.w0_,
             "y_rest": self.y_rest_,
+            "clip_low": self._clip[0],
+            "clip_high": self._clip[1],
         }
         attrs = {
             "size": net.size,
@@ -353,6 +384,9 @@ class EchoStateNetwork(Family):
         self.W_, self.D_, self.w0_ = arrays["W"], arrays["D"], arrays["w0"]
         self.y_rest_ = arrays["y_rest"]
         self.n_inputs_, self.n_outputs_ = int(attrs["n_inputs"]), int(attrs["n_outputs"])
+        if "clip_low" in arrays:
+            self.clip_lo_ = np.asarray(arrays["clip_low"], dtype=np.float64)
+            self.clip_hi_ = np.asarray(arrays["clip_high"], dtype=np.float64)
         self.refinement_ = list(attrs.get("refinement") or [])
         return self
 
@@ -367,6 +401,8 @@ class EchoStateNetwork(Family):
             "readout": self.params.readout.solver,
         }
         info["readout terms"] = [int(len(s)) for s in self.selected_]
+        if np.isfinite(self._clip[0]).any():
+            info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(*self._clip)]
         if self.external:
             info["tune_in"] = self.params.tune_in
             if len(self.refinement_) > 1:

@@ -74,11 +74,13 @@ def free_run_moments(
     y_rest: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
+    clip_lo: np.ndarray,
+    clip_hi: np.ndarray,
     into: dict[str, Moments] | None = None,
 ) -> dict[str, Moments] | None:
     """Moments of the readout rows ``[x_t, u_t, f_t (direct)], y_t`` of the external-mode run with
-    feedback ``f_t`` (``mix``: share of the measured output, :func:`dynmodel.kernels.free_run`);
-    None when a run leaves [lo, hi]. ``into``: moments to reset and reuse (see
+    feedback ``f_t`` (``mix``: share of the measured output, :func:`dynmodel.kernels.free_run_clipped`;
+    the output clipped to [clip_lo, clip_hi] is the one fed back); None when a run leaves [lo, hi]. ``into``: moments to reset and reuse (see
     :func:`dynmodel.moments.accumulate`)."""
     args = net.kernel_args()
     m, n_in, q = net.size, data.n_inputs, data.n_outputs
@@ -94,7 +96,25 @@ def free_run_moments(
         F = buffer[: stop - start]
         u, y = np.ascontiguousarray(s.u), np.ascontiguousarray(s.y)
         div = kernels.free_run_span(
-            *args, u, y, min(tune_in, s.n), mix, W, D, w0, y_rest, lo, hi, x, start, stop, yhat, fb, F[:, :m]
+            *args,
+            u,
+            y,
+            min(tune_in, s.n),
+            mix,
+            W,
+            D,
+            w0,
+            y_rest,
+            lo,
+            hi,
+            clip_lo,
+            clip_hi,
+            x,
+            start,
+            stop,
+            yhat,
+            fb,
+            F[:, :m],
         )
         if div >= 0:
             raise _Diverged
@@ -122,9 +142,11 @@ def free_runs(
     y_rest: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
+    clip_lo: np.ndarray,
+    clip_hi: np.ndarray,
 ) -> bool:
-    """External-mode runs of every series, outputs in ``buffers.yhat``. False when a run leaves
-    [lo, hi] (its later outputs are NaN)."""
+    """External-mode runs of every series, outputs (clipped to [clip_lo, clip_hi], as fed back) in
+    ``buffers.yhat``. False when a run leaves [lo, hi] (its later outputs are NaN)."""
     args = net.kernel_args()
     x = np.zeros(net.size)
     no_states = np.empty((0, net.size))
@@ -132,7 +154,25 @@ def free_runs(
         x[:] = 0.0
         u, y = np.ascontiguousarray(s.u), np.ascontiguousarray(s.y)
         div = kernels.free_run_span(
-            *args, u, y, min(tune_in, s.n), mix, W, D, w0, y_rest, lo, hi, x, 0, s.n, yhat, fb, no_states
+            *args,
+            u,
+            y,
+            min(tune_in, s.n),
+            mix,
+            W,
+            D,
+            w0,
+            y_rest,
+            lo,
+            hi,
+            clip_lo,
+            clip_hi,
+            x,
+            0,
+            s.n,
+            yhat,
+            fb,
+            no_states,
         )
         if div >= 0:
             return False

@@ -40,9 +40,22 @@ def lag_table(ctx: ExtensionContext) -> dict[str, list[int]]:
     lags = ctx.params.get("lags")
     if lags is not None:
         return {name: expand(items) for name, items in lags.items()}
+    emb = getattr(ctx.fitted, "embedding_", None)
+    if emb is not None:  # lags chosen on the data (lags: null): the table the fitted model uses
+        fitted: dict[str, list[int]] = {}
+        for r in emb.regressors:
+            fitted.setdefault(r.name, []).append(r.lag)
+        return fitted
     table = {name: list(DEFAULT_INPUT_LAGS) for name in ctx.model_input_names}
     table.update({name: list(DEFAULT_OUTPUT_LAGS) for name in ctx.output_names})
     return table
+
+
+def _degree(ctx: ExtensionContext) -> int:
+    """The polynomial degree: the spec's, or the one chosen on the data (``degree: null``: the fitted
+    model's, else the largest the default search tries)."""
+    chosen = (getattr(ctx.fitted, "selection_", None) or {}).get("degree")
+    return int(ctx.params.get("degree") or chosen or 3)
 
 
 def _compact(lags: list[int]) -> list[Any]:
@@ -60,7 +73,7 @@ def lags_patch(table: dict[str, list[int]]) -> dict[str, Any]:
 
 
 def _pool(ctx: ExtensionContext, table: dict[str, list[int]], degree: int | None = None) -> int:
-    degree = int(ctx.params.get("degree", 2)) if degree is None else degree
+    degree = _degree(ctx) if degree is None else degree
     return pool_size(sum(len(v) for v in table.values()), degree, bool(ctx.params.get("constant", True)))
 
 
@@ -122,7 +135,7 @@ def _stabilizers(ctx: ExtensionContext) -> list[Extension]:
                 params_patch(ridge="auto"),
             )
         )
-    degree = int(p.get("degree", 2))
+    degree = _degree(ctx)
     if degree > 2 and _free_params(ctx):
         out.append(
             Extension(
@@ -135,7 +148,7 @@ def _stabilizers(ctx: ExtensionContext) -> list[Extension]:
 
 
 def _higher_degree(ctx: ExtensionContext, steps: tuple[int, ...]) -> list[Extension]:
-    degree = int(ctx.params.get("degree", 2))
+    degree = _degree(ctx)
     table = lag_table(ctx)
     out = []
     for d in (degree + s for s in steps):
@@ -147,7 +160,7 @@ def _higher_degree(ctx: ExtensionContext, steps: tuple[int, ...]) -> list[Extens
 def _output_terms(ctx: ExtensionContext) -> list[Extension]:
     """Degree + 1 with one more output lag: output-dependent terms (a stiffness or a saturation acting on
     the output needs the output's own history in the monomials)."""
-    degree = int(ctx.params.get("degree", 2))
+    degree = _degree(ctx)
     table = lag_table(ctx)
     outputs = [y for y in ctx.output_names if table.get(y)]
     if not outputs or degree + 1 > 10:
