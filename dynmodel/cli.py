@@ -91,8 +91,10 @@ def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
     table.add_column("split")
     table.add_column("samples", justify="right")
     shown = [k for k in ("nmse", "max", "rmse", "fit") if k in ("nmse", "max") or any(k in m for m in metrics.values())]
+    units = {m.get("rmse_units") for m in metrics.values()}
+    rmse = f"RMSE ({units.pop()})" if len(units) == 1 and None not in units else "RMSE"
     for k in shown:
-        table.add_column({"nmse": "NMSE %", "max": "MAX", "rmse": "RMSE", "fit": "fit %"}[k], justify="right")
+        table.add_column({"nmse": "NMSE %", "max": "MAX", "rmse": rmse, "fit": "fit %"}[k], justify="right")
     has_one = any("nmse_1" in m for m in metrics.values())
     if has_one:
         table.add_column("NMSE one-step %", justify="right")
@@ -184,7 +186,7 @@ def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
     from .plots import measured_vs_simulated
 
     # the recording holding the test split (else the first), whole, with the splits shaded
-    rec = next((r for r, _, _ in ds.ranges.get("test", [])), 0)
+    rec = next((r for s in ds.test_splits() for r, _, _ in ds.ranges[s]), 0)
     r = ds.recordings[rec]
     t = np.arange(r.n) * ds.sampling_time
     spans = [
@@ -194,7 +196,10 @@ def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
         if rr == rec
     ]
     scored = [
-        a for split in ("test", "validation", "train") for rr, a, _ in ds.scored(split, model.warmup) if rr == rec
+        a
+        for split in (*ds.test_splits(), "validation", "train")
+        for rr, a, _ in ds.scored(split, model.warmup)
+        if rr == rec
     ]
     start = scored[0] if scored else 0
     measured_vs_simulated(
@@ -748,6 +753,7 @@ def plugins() -> None:
     for group, loaded, title in [
         (registry.FAMILIES, registry.families(), "model families"),
         (registry.SOURCES, registry.sources(), "data generators"),
+        (registry.SOURCES, registry.benchmarks(), "benchmark sources (data: {benchmark: NAME, root: DIR})"),
         (registry.SYSTEMS, registry.systems(), "test systems for reliability-check --system"),
         (registry.DETECTORS, registry.detectors(), "detectors of dynmodel diagnose"),
     ]:

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__, registry
+from . import __version__, protocol, registry
 from .data import Preprocessor, load_dataset, training_data
 from .data.dataset import Dataset
 from .errors import DynmodelError
@@ -59,11 +59,13 @@ def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[Fi
     params = spec.model.params.model_dump(mode="python")
     try:
         family = family_cls(**params)
+        protocol.check_warmup(family, ds, spec.source)  # before a long fit, where the parameters fix it
         family.fit(td, spec.cost, family_rng(spec.seed), progress)
     except ValueError as exc:
         raise DynmodelError(
             str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
         ) from exc
+    protocol.check_warmup(family, ds, spec.source)
     train_u, lengths = ds.concat_inputs("train")
     model = FittedModel(
         family,
@@ -76,7 +78,8 @@ def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[Fi
         train_output=ds.concat_outputs("train"),
     )
     progress("evaluate", None, "free runs over every recording")
-    model.metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
+    metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
+    model.metrics = protocol.report(metrics, ds, protocol.units_of(spec, ds))
     return model, runs
 
 

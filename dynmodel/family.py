@@ -54,6 +54,9 @@ class Family(ABC):
     Params: ClassVar[type[FamilyParams]] = FamilyParams
     #: what to try when a free run diverges (the fix of the one-line error)
     stability_hint: ClassVar[str] = "use cost: mse_inf"
+    #: what to try when the model needs more measured outputs (``warmup``) than a protocol's
+    #: initialization window allows; ``{window}`` is replaced by the window's length
+    warmup_hint: ClassVar[str] = "configure the model to start from at most {window} measured outputs"
     #: does ``fit`` draw random numbers (network weights, annealing moves)? Then a result depends on the
     #: seed, and ``dynmodel diagnose`` repeats fits over seeds to measure a gain's uncertainty
     stochastic: ClassVar[bool] = True
@@ -81,7 +84,9 @@ class Family(ABC):
     # -- prediction ----------------------------------------------------------------------
     @property
     def warmup(self) -> int:
-        """Samples at the start of a run that use measured outputs (tune-in); 0 for pure simulators."""
+        """Samples at the start of a run that use measured outputs (tune-in); 0 for pure simulators.
+        Known before ``fit`` where the parameters fix it, so that a protocol's window is checked
+        before a long fit (and again after it)."""
         return 0
 
     @abstractmethod

@@ -36,6 +36,7 @@ class EchoStateNetwork(Family):
     description = "echo state network, internal or external approach (thesis 5.2.3, 5.3.2)"
     Params = EsnParams
     stability_hint = "use cost: mse_inf, the internal mode or a smaller spectral scale"
+    warmup_hint = "set tune_in to at most {window}, or use mode: internal (no measured output is fed back)"
 
     params: EsnParams
 
