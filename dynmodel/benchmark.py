@@ -32,6 +32,10 @@ class TestSet:
     recordings: list[Recording]
     window: int = 0  # samples at the start of each recording that may initialize the model, not scored
     score_all: bool = False  # every sample is scored and no measured output may be used
+    #: with score_all: samples at the start of each recording that are simulated from the input alone and
+    #: not scored (a steady-state test period preceded by a copy of itself, so that the run reaches the
+    #: periodic steady state the recording was measured in)
+    lead_in: int = 0
 
 
 @dataclass
@@ -45,8 +49,9 @@ class BenchmarkData:
     sampling_time: float
     #: reporting units per output: {output: (scale, unit name)}, reported = scale x value in the data's units
     units: dict[str, tuple[float, str]] = field(default_factory=dict)
-    #: the protocol's window for a validation split carved from the training data (that of the tests)
-    window: int = 0
+    #: the protocol's window for a validation split carved from the training data (that of the tests);
+    #: None: no protocol, a validation range continues the free run of its training recording
+    window: int | None = 0
     score_all: bool = False
 
 
@@ -83,6 +88,13 @@ class BenchmarkSource:
             where,
             f"fetch it from {cls.fetch} and put it there (or point data.root to the folder that holds it)",
         )
+
+    @classmethod
+    def steady_state(cls, name: str, u: np.ndarray, y: np.ndarray) -> TestSet:
+        """A test set holding one period of a periodic steady-state response: simulated over the input
+        repeated twice from rest, scored on the second period (the model sees the test input only)."""
+        rec = cls.recording(name, np.concatenate([u, u]), np.concatenate([y, y]))
+        return TestSet(name=None, recordings=[rec], window=0, score_all=True, lead_in=len(u))
 
     @staticmethod
     def recording(name: str, u: np.ndarray, y: np.ndarray) -> Recording:

@@ -88,7 +88,7 @@ def _fmt(v: Any, digits: int = 4) -> str:
 
 def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
     table = Table(title=title, title_justify="left")
-    table.add_column("split")
+    table.add_column("split", min_width=max((len(k) for k in metrics), default=5))
     table.add_column("samples", justify="right")
     shown = [k for k in ("nmse", "max", "rmse", "fit") if k in ("nmse", "max") or any(k in m for m in metrics.values())]
     units = {m.get("rmse_units") for m in metrics.values()}
@@ -155,7 +155,7 @@ def fit(
         model.spec["output"] = str(Path(target).resolve())
         store.save(model, target)
     elapsed = time.perf_counter() - t0
-    recs = ", ".join(dict.fromkeys(r.name.split(":")[-1] for r in ds.recordings))
+    recs = ", ".join(ds.source_names())
     out.print(f"[bold]{s.name}[/]: {s.model.family} fitted with cost {s.cost} on {recs} in {elapsed:.1f} s")
     out.print(metrics_table(model.metrics))
     if s.data.noise is not None and s.data.noise.std > 0:

@@ -56,7 +56,8 @@ def units_of(spec: Any, ds: Dataset) -> dict[str, tuple[float, str]]:
 
 
 def report(metrics: dict[str, Any], ds: Dataset, units: dict[str, tuple[float, str]]) -> dict[str, Any]:
-    """The metrics with each split's protocol recorded (``init_window`` or ``score: all``) and the
+    """The metrics with each split's protocol recorded (``init_window`` or ``score: all``, and a
+    steady-state ``lead_in``) and the
     RMSE in the reporting units (``rmse_units``: the unit's name, when every output has one)."""
     outputs = ds.output_names
     out: dict[str, Any] = {}
@@ -66,6 +67,8 @@ def report(metrics: dict[str, Any], ds: Dataset, units: dict[str, tuple[float, s
             e["score"] = "all"
         elif key in ds.windows:
             e["init_window"] = ds.windows[key]
+        if ds.lead_in.get(key):
+            e["lead_in"] = ds.lead_in[key]
         if units and "rmse" in e:
             per = e.get("per_output")
             if per:

@@ -13,6 +13,7 @@ initialize the model and are not scored; with ``score_all`` every sample is scor
 from __future__ import annotations
 
 import hashlib
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,6 +27,7 @@ from . import resample
 from .readers import read_columns
 
 Range = tuple[int, int, int]  # (recording index, start, stop)
+_SPLIT_PREFIX = re.compile(r"^(validation|test(:[A-Za-z][A-Za-z0-9_-]*)?):")
 
 
 def is_test(split: str) -> bool:
@@ -62,11 +64,19 @@ class Dataset:
     score_all: set[str] = field(default_factory=set)
     #: the source's reporting units per output: {output: (scale, name)} (benchmark sources)
     units: dict[str, tuple[float, str]] = field(default_factory=dict)
+    #: per split key: unscored samples at the start of each recording, simulated from the input alone (a
+    #: steady-state test period preceded by a copy of itself)
+    lead_in: dict[str, int] = field(default_factory=dict)
 
     def splits(self) -> list[str]:
         """Split keys with samples: train, validation, then the test sets in the spec's order."""
         fixed = [s for s in ("train", "validation") if self.ranges.get(s)]
         return fixed + [s for s in self.ranges if s not in ("train", "validation") and self.ranges[s]]
+
+    def source_names(self) -> list[str]:
+        """The recordings' sources for a summary line: names without the split prefix and sample ranges."""
+        names = [re.sub(r"(\[\d*:\d*\])+$", "", _SPLIT_PREFIX.sub("", r.name)) for r in self.recordings]
+        return list(dict.fromkeys(names))
 
     def test_splits(self) -> list[str]:
         """The test split keys: ``test`` or ``test:<name>`` for each named test set."""
@@ -78,13 +88,13 @@ class Dataset:
         out = []
         for rec, start, stop in self.ranges.get(split, []):
             if split in self.score_all:
-                first = start
+                first = start + self.lead_in.get(split, 0)
             else:
                 if self.transient_at == "segment":
                     first = start + self.transient
                 else:  # only the recording's first samples, where the state restarts
                     first = max(start, self.transient)
-                first = max(first, warmup, start + self.windows.get(split, 0))
+                first = max(first, warmup, start + self.windows.get(split, 0), start + self.lead_in.get(split, 0))
             if first < stop:
                 out.append((rec, first, stop))
         return out
@@ -361,9 +371,17 @@ def _split_bounds(split: dict[str, Any], n: int) -> dict[str, tuple[int, int]]:
     return bounds
 
 
-#: a separate recording set: (split key, recordings, where in the spec, its explicit window, its explicit
-#: score, the protocol's window, the protocol's score_all)
-_Separate = tuple[str, list[Recording], str, Any, Any, Any, bool]
+@dataclass
+class _Separate:
+    """A separate validation or test set: its recordings and what the spec and the protocol say of it."""
+
+    key: str
+    recordings: list[Recording]
+    window: int | None = None  # the test set's own init_window (spec)
+    score: str | None = None  # the test set's own score (spec)
+    protocol_window: int | None = None  # the benchmark protocol's window
+    protocol_all: bool = False  # the benchmark protocol scores every sample
+    lead_in: int = 0  # unscored samples at the start of each recording (a steady-state lead-in)
 
 
 def _separate_sources(data: dict[str, Any], resolve, source: str, main) -> list[_Separate]:
@@ -395,26 +413,31 @@ def _separate_sources(data: dict[str, Any], resolve, source: str, main) -> list[
                 f"{source}: {where}.sampling_time",
                 "resample to a common sampling time",
             )
-        out.append((key, recs, where, override.get("init_window"), override.get("score"), None, False))
+        out.append(_Separate(key, recs, override.get("init_window"), override.get("score")))
     return out
 
 
-def _benchmark_sources(data: dict[str, Any], bench, source: str) -> list[_Separate]:
+def _benchmark_sources(data: dict[str, Any], bench) -> list[_Separate]:
     """The test sets of a benchmark source (those named in data.test, in that order, else all)."""
     chosen = bench.tests
     if data.get("test"):
         by_name = {t.name: t for t in bench.tests}
         chosen = [by_name[n] for n in data["test"] if n in by_name]
     return [
-        ("test" if t.name is None else f"test:{t.name}", t.recordings, "data.test", None, None, t.window, t.score_all)
+        _Separate(
+            "test" if t.name is None else f"test:{t.name}",
+            t.recordings,
+            protocol_window=t.window,
+            protocol_all=t.score_all,
+            lead_in=t.lead_in,
+        )
         for t in chosen
     ]
 
 
-def _load_benchmark(data: dict[str, Any], resolve, source: str):
+def _load_benchmark(data: dict[str, Any], resolve):
     bench = registry.benchmark(str(data["benchmark"]))
-    root = resolve(str(data["root"]))
-    return bench.load(root)
+    return bench.load(resolve(str(data["root"])))
 
 
 def _protocol(
@@ -426,18 +449,19 @@ def _protocol(
     ``data.init_window``, then the benchmark's protocol; without any, no window (scored as before)."""
     iw = data.get("init_window")
     per = {"validation": iw, "test": iw} if isinstance(iw, int) else dict(iw or {})
-    own = {key: (w, sc, pw, pa) for key, _, _, w, sc, pw, pa in separate}
+    own = {s.key: s for s in separate}
     global_all = spec.evaluation.score == "all"
     windows: dict[str, int] = {}
     every: set[str] = set()
     for key in keys:
         base = "validation" if key == "validation" else "test"
-        w_own, score_own, w_proto, all_proto = own.get(key, (None, None, None, False))
+        sep = own.get(key, _Separate(key, []))
+        w_proto, all_proto = sep.protocol_window, sep.protocol_all
         if key == "validation" and bench is not None:
             w_proto, all_proto = bench.window, bench.score_all
-        explicit = w_own if w_own is not None else per.get(base)
-        if score_own is not None:
-            score_all = score_own == "all"
+        explicit = sep.window if sep.window is not None else per.get(base)
+        if sep.score is not None:
+            score_all = sep.score == "all"
         elif global_all:
             score_all = True
         elif explicit is not None:
@@ -481,9 +505,9 @@ def load_dataset(spec) -> Dataset:
     resolve = spec.resolve_path
     bench = None
     if data.get("benchmark") is not None:
-        bench = _load_benchmark(data, resolve, spec.source)
+        bench = _load_benchmark(data, resolve)
         main_recs, st, in_names, out_names = bench.train, bench.sampling_time, bench.input_names, bench.output_names
-        separate = _benchmark_sources(data, bench, spec.source)
+        separate = _benchmark_sources(data, bench)
     else:
         main_recs, st, in_names, out_names = _load_source(data, resolve, "data")
         separate = _separate_sources(data, resolve, spec.source, (main_recs, st, in_names, out_names))
@@ -491,7 +515,7 @@ def load_dataset(spec) -> Dataset:
     recordings: list[Recording] = list(main_recs)
     ranges: dict[str, list[Range]] = {s: [] for s in SPLITS}
 
-    given = {"validation" if key == "validation" else "test" for key, *_ in separate}
+    given = {"validation" if s.key == "validation" else "test" for s in separate}
     split = data.get("split")
     if split is None:
         split = {"train": 0.6, "validation": 0.2, "test": 0.2}
@@ -525,11 +549,11 @@ def load_dataset(spec) -> Dataset:
             if b > a:
                 ranges[s].append((i, a, b))
 
-    for key, recs, *_ in separate:
-        for rec in recs:
-            rec.name = f"{key}:{rec.name}"
+    for sep in separate:
+        for rec in sep.recordings:
+            rec = Recording(f"{sep.key}:{rec.name}", rec.u, rec.y)
             recordings.append(rec)
-            ranges.setdefault(key, []).append((len(recordings) - 1, 0, rec.n))
+            ranges.setdefault(sep.key, []).append((len(recordings) - 1, 0, rec.n))
 
     keys = [k for k, v in ranges.items() if v and k != "train"]
     windows, every = _protocol(data, spec, bench, separate, keys)
@@ -545,6 +569,7 @@ def load_dataset(spec) -> Dataset:
         windows=windows,
         score_all=every,
         units=dict(bench.units) if bench is not None else {},
+        lead_in={s.key: s.lead_in for s in separate if s.lead_in},
     )
     _add_noise(ds, data.get("noise"), spec.seed)
     _check_sizes(ds, spec.source)
