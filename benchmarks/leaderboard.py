@@ -71,7 +71,7 @@ BENCHMARKS = [
         },
         {
             "test:multisine": Published("0.301", f"GP-NARX baseline, {CHAMPNEYS}"),
-            "test:arrow-full": Published("0.26", "PNLSS, Paduart et al. 2010"),
+            "test:arrow-full": Published("0.26", "PNLSS, Paduart et al. 2010 (from the literature, not verified here)"),
             "test:arrow-no-extrapolation": Published("0.259", f"GP-NARX baseline, {CHAMPNEYS}"),
         },
     ),
@@ -106,7 +106,7 @@ VARIANTS = ("narx", "auto")  # specs/benchmarks/<benchmark>-<variant>.yaml
 def _fmt(value: float | None) -> str:
     if value is None or not np.isfinite(value):
         return "diverged"
-    return f"{value:.3g}" if value >= 1e-3 else f"{value:.3g}".replace("e-0", "e-")
+    return f"{value:#.3g}" if value >= 1e-3 else f"{value:.2e}".replace("e-0", "e-")
 
 
 def run_spec(path: Path, data: Path | None) -> tuple[dict[str, float | None], float, object, object, object]:
@@ -217,9 +217,10 @@ def main() -> None:
                 continue
             b.rows[variant] = {k: f"**{_fmt(rmse.get(k))}**" for k in b.tests}
             terms = f", {len(model.family.weights_)} terms" if hasattr(model.family, "weights_") else ""
-            notes.append(f"`{path.relative_to(ROOT)}`: fit {seconds:.0f} s{terms}")
+            notes.append(f"`{path.relative_to(ROOT)}`: fit and scoring {seconds:.2g} s{terms}")
             print(
-                f"{path.name}: fit {seconds:.1f} s; " + ", ".join(f"{k} {_fmt(rmse.get(k))}" for k in b.tests),
+                f"{path.name}: fit and scoring {seconds:.2g} s; "
+                + ", ".join(f"{k} {_fmt(rmse.get(k))}" for k in b.tests),
                 flush=True,
             )
             if variant == "narx" and not args.no_peer:
@@ -235,7 +236,11 @@ def main() -> None:
         "Test RMSE of the free run, in each benchmark's units, with the protocol of nonlinear-benchmarks 1.0.1 "
         "(Bouc-Wen: its benchmark document, every sample scored from the input alone); configurations chosen on "
         "validation within the training data (`benchmarks/benchmark_selection.py`), never on a test set. "
-        "Regenerate with `python benchmarks/leaderboard.py --readme`.\n\n" + text + "\n\n" + "; ".join(notes) + "\n"
+        "Regenerate with `python benchmarks/leaderboard.py --readme` (times: wall time of that run).\n\n"
+        + text
+        + "\n\n"
+        + "; ".join(notes)
+        + "\n"
     )
     print("\n" + text)
     args.out.parent.mkdir(parents=True, exist_ok=True)
