@@ -31,7 +31,7 @@ import time
 import traceback
 import warnings
 from collections import OrderedDict, deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable
 from concurrent.futures import CancelledError, Executor, Future, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
@@ -279,6 +279,16 @@ def _is_killed_worker(exc: BaseException) -> bool:
     return type(exc).__name__ == "KilledWorker"
 
 
+def _cancel_test(cancel: threading.Event | Callable[[], bool] | None) -> Callable[[], bool]:
+    """``cancel`` (an event, anything with ``is_set()``, a callable or None) as a callable: is it set?"""
+    is_set = getattr(cancel, "is_set", None)
+    if callable(is_set):
+        return lambda: bool(is_set())
+    if callable(cancel):
+        return cancel
+    return lambda: False
+
+
 def run_specs(
     variants: Iterable[Variant],
     executor: Executor | None = None,
@@ -289,7 +299,7 @@ def run_specs(
     wait_running: bool = False,
     max_retries: int = 2,
     poll: float = 0.2,
-) -> Iterator[PointResult]:
+) -> Generator[PointResult, None, None]:
     """Fit every variant on ``executor`` and yield a :class:`PointResult` as each one finishes.
 
     - ``executor``: any ``concurrent.futures.Executor``; None makes a local process pool with one
@@ -312,18 +322,7 @@ def run_specs(
     if executor is None:
         executor = make_executor()
     started = time.monotonic()
-    if callable(getattr(cancel, "is_set", None)):
-        event = cancel
-
-        def cancelled() -> bool:
-            return bool(event.is_set())  # type: ignore[union-attr]
-
-    elif callable(cancel):
-        cancelled = cancel  # type: ignore[assignment]
-    else:
-
-        def cancelled() -> bool:
-            return False
+    cancelled = _cancel_test(cancel)
 
     def stopping() -> bool:
         return cancelled() or (budget is not None and time.monotonic() - started >= budget)

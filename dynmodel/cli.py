@@ -31,10 +31,11 @@ class _OneLineErrors(TyperGroup):
     """Usage errors (a missing argument, a bad option value) as one line, like every other error."""
 
     def main(self, *args: Any, standalone_mode: bool = True, **kwargs: Any) -> Any:
+        # (mypy: *args could hold click's positional standalone_mode; callers pass it by keyword)
         if not standalone_mode:
-            return super().main(*args, standalone_mode=False, **kwargs)
+            return super().main(*args, standalone_mode=False, **kwargs)  # type: ignore[misc]
         try:
-            rv = super().main(*args, standalone_mode=False, **kwargs)
+            rv = super().main(*args, standalone_mode=False, **kwargs)  # type: ignore[misc]
         except typer.TyperException as exc:  # click's usage errors, vendored by typer
             if type(exc).__name__ == "NoArgsIsHelpError":
                 print(exc.format_message())
@@ -396,7 +397,7 @@ def inspect(
     check_outputs([(json_path, "json", "--json")], {"model": model_path}, force)
     model = store.load(model_path)
     pre = model.preprocessor
-    summary = {
+    summary: dict[str, Any] = {
         "file": str(model_path),
         "name": model.spec.get("name"),
         "family": model.family.name,
@@ -542,7 +543,7 @@ def reliability_check(
             try:
                 target = cls(**values)
             except ValueError as exc:  # pydantic's ValidationError is a ValueError
-                errors = getattr(exc, "errors", lambda: [])()
+                errors: list[dict[str, Any]] = getattr(exc, "errors", lambda: [])()
                 loc = ".".join(str(p) for p in errors[0]["loc"]) if errors else ""
                 detail = f"{loc + ': ' if loc else ''}{errors[0]['msg']}" if errors else str(exc).splitlines()[-1]
                 raise SpecError(
@@ -553,6 +554,7 @@ def reliability_check(
         else:
             from . import store
 
+            assert model_path is not None  # exactly one of MODEL and --system (checked above)
             progress("load", None, str(model_path))
             model = store.load(model_path)
             report = check_model(model, settings, progress, str(model_path))
@@ -681,7 +683,7 @@ def sweep_cmd(
                 spec,
                 grid,
                 out=folder,
-                keep=keep,
+                keep=keep,  # type: ignore[arg-type]  # a str from the command line: sweep() checks it
                 resume=resume,
                 workers=workers,
                 scheduler=scheduler,

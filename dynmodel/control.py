@@ -258,22 +258,20 @@ def run(model, plant: Plant, settings: Settings, progress: Progress = no_progres
     task = plant.tracking_task(n, np.random.default_rng(ref_seq))
     reference = task.reference
     u = np.repeat(reference[:, None], len(model.input_names), axis=1)
-    lo, hi = (
-        (np.min(model.train_input, axis=0), np.max(model.train_input, axis=0))
-        if model.train_input is not None
-        else (None, None)
-    )
-    if lo is not None and (reference.min() < lo.min() or reference.max() > hi.max()):
-        notes.append(
-            f"the reference spans [{reference.min():.4g}, {reference.max():.4g}], beyond the training "
-            f"input range [{lo.min():.4g}, {hi.max():.4g}]"
-        )
+    if model.train_input is not None:
+        lo, hi = np.min(model.train_input, axis=0), np.max(model.train_input, axis=0)
+        if reference.min() < lo.min() or reference.max() > hi.max():
+            notes.append(
+                f"the reference spans [{reference.min():.4g}, {reference.max():.4g}], beyond the training "
+                f"input range [{lo.min():.4g}, {hi.max():.4g}]"
+            )
     ff_perfect = task.perfect_feedforward()
     hold = 1 if settings.hold == "linear" else 0
 
     def model_feedforward(force_before: np.ndarray | None) -> np.ndarray:
         tune = None
         if model.warmup:
+            assert force_before is not None  # a model with a tune-in gets the P-controlled start
             y = np.zeros((model.warmup, len(model.output_names)))
             y[:, k_out] = force_before[: model.warmup]
             tune = y

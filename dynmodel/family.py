@@ -214,6 +214,8 @@ def _routes_arrays(model_space_fit: Callable[..., Any]) -> Callable[..., Any]:
 
 
 class Family(ABC):
+    #: after a fit (on arrays or through the engine): the FittedModel in physical units
+    model_: FittedModel
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     Params: ClassVar[type[FamilyParams]] = FamilyParams

@@ -11,7 +11,20 @@ recordings; ``var(y)`` and ``std(y)`` are those of the measured output on the sa
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Literal, get_args
+
 import numpy as np
+
+#: the metric names a spec's ``evaluation.metrics`` accepts (this module is their one home)
+MetricName = Literal["nmse", "max", "rmse", "fit"]
+METRIC_NAMES: tuple[MetricName, ...] = get_args(MetricName)
+#: what a spec without ``evaluation.metrics`` reports
+DEFAULT_METRICS: tuple[MetricName, ...] = ("nmse", "max")
+#: metrics where a larger value is better (the others are errors)
+HIGHER_IS_BETTER: tuple[MetricName, ...] = ("fit",)
+#: column headings of tables
+METRIC_LABELS: dict[str, str] = {"nmse": "NMSE %", "max": "MAX", "rmse": "RMSE", "fit": "fit %"}
 
 
 def nmse(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
@@ -38,4 +51,10 @@ def fit_percent(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:
     return 100.0 * (1.0 - rmse(y, yhat) / np.maximum(np.std(y, axis=0), np.finfo(float).tiny))
 
 
-METRICS = {"nmse": nmse, "max": max_error, "rmse": rmse, "fit": fit_percent}
+METRICS: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
+    "nmse": nmse,
+    "max": max_error,
+    "rmse": rmse,
+    "fit": fit_percent,
+}
+assert set(METRICS) == set(METRIC_NAMES)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -13,7 +13,7 @@ from .data.dataset import Dataset
 from .data.preprocess import Preprocessor
 from .errors import DataError
 from .family import Family
-from .metrics import METRICS, nmse
+from .metrics import DEFAULT_METRICS, METRICS, nmse
 
 
 def _named_columns(frame, names: list[str]):
@@ -187,15 +187,17 @@ class FittedModel:
 
 
 def evaluate(
-    model: FittedModel, ds: Dataset, metrics: list[str] = ("nmse", "max"), one_step: bool = True
+    model: FittedModel, ds: Dataset, metrics: Sequence[str] = DEFAULT_METRICS, one_step: bool = True
 ) -> tuple[dict[str, Any], list[Run]]:
     """Free-run every recording from its first sample to its end and score each split."""
     warm = model.warmup
     runs = [model.run(r.u, r.y[:warm] if warm else None) for r in ds.recordings]
-    one = None
+    one: list[np.ndarray] | None = None
     if one_step:
         preds = [model.predict_one_step(r.u, r.y) for r in ds.recordings]
-        one = preds if all(p is not None for p in preds) else None
+        one = [p for p in preds if p is not None]
+        if len(one) < len(preds):
+            one = None
     out: dict[str, Any] = {}
     st = ds.sampling_time
     for split in ds.splits():

@@ -238,4 +238,4 @@ def accumulate(
             F = produce(k, start, stop)
             if label is not None:
                 out[label].add(F, series.y[start:stop])
-    return out  # type: ignore[return-value]
+    return out

@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
+
+if TYPE_CHECKING:
+    from rich.status import Status
 
 
 class Reporter:
@@ -21,7 +24,7 @@ class Reporter:
         self.quiet_start = quiet_start
         self._stage: str | None = None
         self._last = 0.0
-        self._status = None
+        self._status: Status | None = None
         self._start = time.monotonic()
         if self.tty:
             from rich.console import Console

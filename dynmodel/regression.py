@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any, Protocol, cast
 
 import numpy as np
 import scipy.linalg
@@ -55,7 +56,7 @@ def qr_reduce(A: np.ndarray, Y: np.ndarray, ones: bool = False) -> tuple[np.ndar
         if ones:
             block[acc.shape[0] :, A.shape[1]] = 1.0
         block[acc.shape[0] :, K:] = Y[start : start + rows]
-        acc = np.linalg.qr(block, mode="r")
+        acc = cast(np.ndarray, np.linalg.qr(block, mode="r"))
     if acc.shape[0] < K:  # fewer rows than columns
         acc = np.vstack([acc, np.zeros((K - acc.shape[0], acc.shape[1]))])
     return acc[:K, :K], acc[:K, K:]
@@ -159,13 +160,20 @@ class FosPath:
 ValidationError = Callable[[list[int], np.ndarray], float]
 
 
+class Columns(Protocol):
+    """A validation pool: an array, or anything that gives the columns ``Pv[:, order]`` on demand
+    (e.g. monomials evaluated lazily)."""
+
+    def __getitem__(self, key: Any, /) -> np.ndarray: ...
+
+
 class _Stopper:
     """The stopping rule shared by both FOS variants: with a validation pool (or a ``validation``
     error function), the number of terms with the lowest validation error, searched until
     ``patience`` terms bring no new lowest (thesis A.3); without one, every selected term is kept."""
 
     def __init__(
-        self, Pv: np.ndarray | None, yv: np.ndarray | None, patience: int, validation: ValidationError | None = None
+        self, Pv: Columns | None, yv: np.ndarray | None, patience: int, validation: ValidationError | None = None
     ):
         if validation is None and Pv is not None and yv is not None:
             validation = lambda order, coef: float(np.mean((yv - Pv[:, order] @ coef) ** 2))  # noqa: E731
@@ -204,7 +212,7 @@ def fos_select(
     forced: tuple[int, ...] = (),
     max_terms: int | None = None,
     threshold: float | None = None,
-    Pv: np.ndarray | None = None,
+    Pv: Columns | None = None,
     yv: np.ndarray | None = None,
     patience: int = 1,
     tol: float = 1e-10,
@@ -252,7 +260,9 @@ def fos_select(
         valid = available & (Dmm > tol * np.maximum(diag, 1e-300))
         if not valid.any():
             break
-        i = _next_term(order, forced, valid, lambda: Ct * Ct / np.where(valid, Dmm, 1.0), threshold, yy, ties)
+        i = _next_forced(order, forced, valid)
+        if i is None:
+            i = _best_term(Ct * Ct / np.where(valid, Dmm, 1.0), valid, threshold, yy, ties)
         if i is None:
             break
         alpha[m, :m] = Dt[:m, i] / D[:m]
@@ -277,7 +287,7 @@ def fos_select_qr(
     forced: tuple[int, ...] = (),
     max_terms: int | None = None,
     threshold: float | None = None,
-    Pv: np.ndarray | None = None,
+    Pv: Columns | None = None,
     yv: np.ndarray | None = None,
     patience: int = 1,
     tol: float = 1e-24,
@@ -309,7 +319,9 @@ def fos_select_qr(
         valid = available & (d > tol * np.maximum(norm0, 1e-300)) & (d > 0)
         if not valid.any():
             break
-        i = _next_term(order, forced, valid, lambda: (V.T @ r) ** 2 / np.where(valid, d, 1.0), threshold, yy)
+        i = _next_forced(order, forced, valid)
+        if i is None:
+            i = _best_term((V.T @ r) ** 2 / np.where(valid, d, 1.0), valid, threshold, yy)
         if i is None:
             break
         q = V[:, i] / np.sqrt(d[i])
@@ -329,26 +341,22 @@ def fos_select_qr(
     return stopper.path(order, coef_path, Q)
 
 
-def _next_term(
-    chosen: list[int],
-    forced: tuple[int, ...],
-    valid: np.ndarray,
-    reduction,
-    threshold: float | None,
-    yy: float,
-    ties: float = 0.0,
+def _next_forced(chosen: list[int], forced: tuple[int, ...], valid: np.ndarray) -> int | None:
+    """Index of the next forced FOS term not chosen yet, skipping those numerically in the span of the
+    terms already chosen (they add nothing); None when no forced term is pending."""
+    for f in forced:
+        if f not in chosen and valid[f]:
+            return f
+    return None
+
+
+def _best_term(
+    reduction: np.ndarray, valid: np.ndarray, threshold: float | None, yy: float, ties: float = 0.0
 ) -> int | None:
-    """Index of the next FOS term, or None to stop: the forced terms first (skipping those numerically in
-    the span of the terms already chosen), then the candidate with
-    the largest error reduction Q = C^2 / D (appendix A.2.2), the first of the nearly best ones in pool
-    order when ``ties`` > 0; stop when nothing is left or the best reduction falls below
-    ``threshold`` times y'y. ``reduction()`` gives Q for every candidate."""
-    pending = [f for f in forced if f not in chosen]
-    while pending and not valid[pending[0]]:  # a forced term in the span of those chosen adds nothing
-        pending.pop(0)
-    if pending:
-        return pending[0]
-    score = np.where(valid, reduction(), -np.inf)
+    """Index of the candidate with the largest error reduction Q = C^2 / D (appendix A.2.2), given
+    ``reduction`` = Q for every candidate; the first of the nearly best ones in pool order when
+    ``ties`` > 0; None (stop) when the best reduction falls below ``threshold`` times y'y."""
+    score = np.where(valid, reduction, -np.inf)
     i = int(np.argmax(score))
     if ties > 0.0:
         i = int(np.flatnonzero(score >= score[i] * (1.0 - ties))[0])
@@ -391,7 +399,7 @@ def fos(
     pool_v = None
     if Fv is not None:
         pool_v = np.hstack([np.ones((Fv.shape[0], 1)), Fv]) if fit_intercept else Fv
-        Yv = _as2d(Yv)
+        Yv = None if Yv is None else _as2d(Yv)
     forced = (0,) if fit_intercept else ()
     if method == "qr":
         R, QtY = qr_reduce(pool, Y)
@@ -405,7 +413,7 @@ def fos(
     sizes = []
     for q in range(Y.shape[1]):
         y = Y[:, q]
-        common = dict(
+        common: dict[str, Any] = dict(
             forced=forced,
             max_terms=max_terms,
             threshold=threshold,

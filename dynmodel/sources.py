@@ -6,7 +6,7 @@ parameters and a ``numpy.random.Generator``; the same parameters and seed give t
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -31,10 +31,11 @@ class Generator:
         return float(getattr(params, "sampling_time", 1.0))
 
     @classmethod
-    def generate(cls, params: GeneratorParams, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Return ``(u, y)`` with shapes ``(n, n_inputs)`` and ``(n, n_outputs)``."""
+    def generate(cls, params: Any, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Return ``(u, y)`` with shapes ``(n, n_inputs)`` and ``(n, n_outputs)``; ``params`` is an instance of
+        the generator's own ``Params``."""
         raise NotImplementedError
 
     #: optional: ``control_plant(params)`` returning a :class:`dynmodel.control.Plant`, which makes the
     #: generator a plant for ``dynmodel control`` (None: not a plant)
-    control_plant: ClassVar[object] = None
+    control_plant: ClassVar[Any] = None  # a classmethod (params) -> Plant in a plant generator

@@ -13,7 +13,7 @@ import difflib
 import json
 from functools import cache
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origin
+from typing import Annotated, Any, Literal, Optional, Union, cast, get_args, get_origin
 
 import yaml
 from pydantic import (
@@ -31,11 +31,11 @@ from pydantic import (
 
 from . import registry
 from .errors import SpecError
+from .metrics import DEFAULT_METRICS, MetricName
 
 SPLITS = ("train", "validation", "test")
 SplitName = Literal["train", "validation", "test"]
 COSTS = ("mse1", "mse_inf")
-METRICS = ("nmse", "max", "rmse", "fit")
 
 
 class StrictModel(BaseModel):
@@ -90,7 +90,7 @@ class NoiseSpec(StrictModel):
     """Gaussian measurement noise added to the output of chosen splits (noisy-training experiments)."""
 
     std: float = Field(ge=0.0, description="noise std as a fraction of the clean output std")
-    splits: list[SplitName] = Field(default_factory=lambda: ["train", "validation"])
+    splits: list[SplitName] = Field(default_factory=lambda: cast(list[SplitName], ["train", "validation"]))
     seed: Optional[int] = Field(None, ge=0, description="noise seed; default derived from the spec seed")
 
 
@@ -355,8 +355,8 @@ class ReportUnit(StrictModel):
 class EvaluationSpec(StrictModel):
     """Metrics on free-running predictions started at each recording's first sample (thesis 6.2.2)."""
 
-    metrics: list[Literal["nmse", "max", "rmse", "fit"]] = Field(
-        default_factory=lambda: ["nmse", "max"],
+    metrics: list[MetricName] = Field(
+        default_factory=lambda: list(DEFAULT_METRICS),
         description="nmse (%), max (in output stds), rmse (output units), fit (%: 100 (1 - rmse / std))",
     )
     one_step: bool = Field(True, description="also report the one-step NMSE where the family distinguishes it")
@@ -394,7 +394,7 @@ def _benchmark_data_model(benches: dict[str, Any]) -> type[BaseModel]:
         "BenchmarkData",
         __base__=DataCommon,
         __doc__="a standard benchmark read from local files, with its protocol's splits, windows and units",
-        benchmark=(Literal[names], Field(description="the benchmark (see `dynmodel plugins`)")),  # type: ignore[valid-type]
+        benchmark=(Literal[names], Field(description="the benchmark (see `dynmodel plugins`)")),
         root=(str, Field(description="folder holding the benchmark's files (relative to the spec file)")),
         test=(
             Optional[list[Annotated[str, Field(pattern=TEST_NAME)]]],
@@ -479,7 +479,7 @@ def spec_model() -> type[BaseModel]:
         @model_validator(mode="after")
         def _family_cost(self):
             if self.cost is None:
-                self.cost = getattr(fams.get(self.model.family), "default_cost", "mse1")
+                self.cost = getattr(fams.get(self.model.family), "default_cost", "mse1")  # type: ignore[attr-defined]
             return self
 
         @property
@@ -603,7 +603,7 @@ def _is_member_tag(p: Any) -> bool:
 
 
 def _dotted(loc: tuple) -> str:
-    parts = []
+    parts: list[str] = []
     bench_tag = False
     for p in loc:
         if isinstance(p, str) and (p == "file" or p.startswith("generator:") or p.startswith("function-")):
@@ -620,7 +620,7 @@ def _dotted(loc: tuple) -> str:
 
 
 def _loc_without_tags(loc: tuple) -> tuple:
-    out = []
+    out: list[Any] = []
     bench_tag = False
     for p in loc:
         if isinstance(p, str) and (p == "file" or p.startswith("generator:")):
@@ -794,8 +794,8 @@ def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | 
         spec = spec_model().model_validate(raw)
     except ValidationError as err:
         raise format_validation_error(err, source) from None
-    spec._base_dir = (base_dir or Path.cwd()).resolve()
-    spec._source = source
+    spec._base_dir = (base_dir or Path.cwd()).resolve()  # type: ignore[attr-defined]  # Spec: built in spec_model()
+    spec._source = source  # type: ignore[attr-defined]
     return spec
 
 

@@ -110,7 +110,7 @@ def remove_stale_temporaries(path: str | Path) -> list[Path]:
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     prefix = f".{path.name}."
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(os.scandir(folder))
     except OSError:

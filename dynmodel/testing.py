@@ -35,7 +35,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from pydantic import BaseModel
@@ -153,7 +153,8 @@ class FamilyCase:
         """A fresh fit on the training recording (the last 25 % validate)."""
         est = self.new()
         require(
-            est.fit(self.u, self.y, validation=0.25, seed=seed, **self.fit_options) is est,
+            # fit on arrays: Family.fit routes non-TrainingData arguments at run time (family._routes_arrays)
+            cast(Any, est).fit(self.u, self.y, validation=0.25, seed=seed, **self.fit_options) is est,
             "fit(u, y) on arrays returns self",
         )
         return est

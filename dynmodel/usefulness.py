@@ -94,13 +94,14 @@ def input_dependence(
             moved.append(held.y[a:b] if held.diverged_at is None or held.diverged_at >= b else None)
             varied.append(real.y[a:b])
             measured.append(r.y[a:b])
-    if any(m is None for m in moved):
+    held_runs = [m for m in moved if m is not None]
+    if len(held_runs) < len(moved):
         return float("inf")
     y = np.concatenate(measured)
     var = y.var(axis=0)
     if not np.all(var > 0):
         return None
-    diff = np.concatenate(varied) - np.concatenate(moved)
+    diff = np.concatenate(varied) - np.concatenate(held_runs)
     return float(np.mean(np.mean(diff**2, axis=0) / var))
 
 

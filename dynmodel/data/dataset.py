@@ -342,8 +342,9 @@ def _merge_source(main: dict[str, Any], override: dict[str, Any], split: str, in
         base.pop("path", None)
         if given["generator"] != main.get("generator"):
             base.pop("params", None)
-    if "params" in given and isinstance(base.get("params"), dict):
-        given["params"] = {**base["params"], **given["params"]}
+    base_params = base.get("params")
+    if "params" in given and isinstance(base_params, dict):
+        given["params"] = {**base_params, **given["params"]}
     merged = {**base, **given}
     if (
         "generator" in merged
@@ -357,8 +358,8 @@ def _merge_source(main: dict[str, Any], override: dict[str, Any], split: str, in
 
 def _load_source(src: dict[str, Any], resolve, where: str):
     if "generator" in src:
-        rec, st, ins, outs = _generator_recording(src, where)
-        return [rec], st, ins, outs
+        rec, generated_st, ins, outs = _generator_recording(src, where)
+        return [rec], generated_st, ins, outs
     if "input" not in src or "output" not in src:
         raise SpecError(
             "a file source needs 'input' and 'output' column lists", where, "add input: [...] and output: [...]"
@@ -366,7 +367,7 @@ def _load_source(src: dict[str, Any], resolve, where: str):
     if src.get("resample") is not None and src.get("time_column") is None:
         raise SpecError("resample needs the time stamps", f"{where}.resample", "add time_column: NAME (and time_unit)")
     recs, step = _file_recordings(src, resolve)
-    st = src.get("sampling_time")
+    st: Any = src.get("sampling_time")
     if step is not None:
         if st is not None and abs(float(st) - step) > resample.UNIFORM_TOLERANCE * step:
             raise SpecError(

@@ -211,10 +211,10 @@ class Preprocessor:
             float(attrs["sampling_time"]),
             [int(d) for d in attrs["delay_lines"]],
             str(attrs["scaling"]),
-            *(
-                np.asarray(arrays[k], dtype=np.float64)
-                for k in ("input_offset", "input_scale", "output_offset", "output_scale")
-            ),
+            input_offset=np.asarray(arrays["input_offset"], dtype=np.float64),
+            input_scale=np.asarray(arrays["input_scale"], dtype=np.float64),
+            output_offset=np.asarray(arrays["output_offset"], dtype=np.float64),
+            output_scale=np.asarray(arrays["output_scale"], dtype=np.float64),
         )
         if attrs.get("derived_inputs"):
             pre.derived = list(attrs["derived_inputs"])

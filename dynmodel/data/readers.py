@@ -105,7 +105,7 @@ def read_text(
     def split(line: str) -> list[str]:
         if whitespace:
             return line.split()
-        return next(csv.reader([line], delimiter=delim))
+        return next(csv.reader([line], delimiter=delim or ","))  # delim is set when not whitespace
 
     if header:
         names = [h.strip() for h in split(lines[0])]

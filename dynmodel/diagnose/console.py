@@ -30,14 +30,15 @@ def _p(g: dict[str, Any]) -> str:
 
 def checks_table(rnd: Round, title: str) -> Table:
     table = Table(title=title, title_justify="left")
-    for col, kw in (
+    columns: tuple[tuple[str, dict[str, Any]], ...] = (
         ("cause", {}),
         ("named", {}),
         ("score", {"justify": "right"}),
         ("p", {"justify": "right"}),
         ("effect", {"justify": "right"}),
         ("why (not) named", {"overflow": "fold"}),
-    ):
+    )
+    for col, kw in columns:
         table.add_column(col, **kw)
     for f in rnd.findings:
         g = f.gates
@@ -84,10 +85,10 @@ def print_diagnosis(result: Diagnosis, out: Console, metrics_table) -> None:
         for i, f in enumerate(rnd.significant, 1):
             out.print(f"  {i}. [bold]{f.cause}[/]: {escape(f.summary)}")
         if rnd.chosen is not None and rnd.chosen.fit is not None:
-            g = rnd.gain()
+            round_gain = rnd.gain()
             test = (
-                f"; test NMSE {_fmt(g['test_nmse_before'])} -> {_fmt(g['test_nmse_after'])} %"
-                if g.get("test_nmse_before") is not None or g.get("test_nmse_after") is not None
+                f"; test NMSE {_fmt(round_gain['test_nmse_before'])} -> {_fmt(round_gain['test_nmse_after'])} %"
+                if round_gain.get("test_nmse_before") is not None or round_gain.get("test_nmse_after") is not None
                 else ""
             )
             verdict = "applied" if rnd.accepted else "not applied"
@@ -102,7 +103,7 @@ def print_diagnosis(result: Diagnosis, out: Console, metrics_table) -> None:
             "[green]adequate[/]: no cause is significant, no reference does significantly better; nothing to extend"
         )
         return
-    named = []
+    named: list[tuple[int, str]] = []
     for i, c in result.named:
         if c not in [n for _, n in named]:
             named.append((i, c))
@@ -114,8 +115,9 @@ def print_diagnosis(result: Diagnosis, out: Console, metrics_table) -> None:
         before = g.get("test_nmse_before")
         after = g.get("test_nmse_after")
         red = g.get("relative_reduction")
-        unc = g.get("uncertainty") or {}
-        unc = unc["per_output"][0] if "per_output" in unc else unc
+        unc: dict[str, Any] = g.get("uncertainty") or {}
+        if "per_output" in unc:
+            unc = unc["per_output"][0]
         rr = unc.get("relative_reduction") or {}
         spread = f" ± {100 * rr['std']:.1f} %" if rr.get("std") is not None else ""
 

@@ -112,10 +112,10 @@ def _fit_arx(d: _Data, na: int, nb: int) -> Linear | None:
                 t.append(d.y[r][rows, k])
         if not X:
             return None
-        X, t = np.vstack(X), np.concatenate(t)
-        if X.shape[0] <= 2 * X.shape[1]:
+        A, target = np.vstack(X), np.concatenate(t)
+        if A.shape[0] <= 2 * A.shape[1]:
             return None
-        theta, *_ = np.linalg.lstsq(X, t, rcond=None)
+        theta, *_ = np.linalg.lstsq(A, target, rcond=None)
         coef.append((theta[:na], theta[na:-1].reshape(-1, nb), float(theta[-1])))
     return Linear(na, nb, coef)
 

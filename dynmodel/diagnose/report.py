@@ -286,22 +286,23 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
                 if c.fit is None:
                     lines.append(f"| {c.extension.summary}{mark} | failed: {c.error} | – | – |")
                 else:
-                    t = c.fit.metrics.get("test") or {}
+                    scores = c.fit.metrics.get("test") or {}
                     lines.append(
                         f"| {c.extension.summary}{mark} | {_fmt(c.score(split))} | "
-                        f"{_fmt(t.get('nmse')) if t.get('nmse') is not None else 'diverged'} | {_fmt(t.get('max'))} |"
+                        f"{_fmt(scores.get('nmse')) if scores.get('nmse') is not None else 'diverged'} | "
+                        f"{_fmt(scores.get('max'))} |"
                     )
             lines.append("")
         lines += ["## Gain on the held-out test split", ""] + _gain_lines(result.gain) + [""]
         if final is not None and result.gain:
             lines += ["![before and after](before_after.png)", ""]
-        ext = extended_spec(result, folder)
-        if ext is not None:
+        extended = extended_spec(result, folder)
+        if extended is not None:
             lines += [
                 f"## Extended spec (`{EXTENDED}`, run with `dynmodel fit {EXTENDED}`)",
                 "",
                 "```yaml",
-                yaml.safe_dump(jsonable(ext), sort_keys=False).rstrip(),
+                yaml.safe_dump(jsonable(extended), sort_keys=False).rstrip(),
                 "```",
                 "",
             ]

@@ -203,7 +203,7 @@ class Diagnosis:
         }
 
     def _gain_json(self) -> dict[str, Any]:
-        gain = (
+        gain: dict[str, Any] = (
             dict(self.gain)
             if self.gain is not None
             else {

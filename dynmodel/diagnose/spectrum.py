@@ -73,7 +73,9 @@ def welch(segments: list[np.ndarray], nperseg: int | None = None, width: int = 1
     usable = [np.asarray(s, dtype=np.float64) for s in segments if len(s) >= nperseg]
     if not usable:
         return None
-    total, count, freq = None, 0, None
+    total: np.ndarray | None = None
+    freq: np.ndarray | None = None
+    count = 0
     for s in usable:
         f, p = signal.welch(
             s - s.mean(),
@@ -89,6 +91,7 @@ def welch(segments: list[np.ndarray], nperseg: int | None = None, width: int = 1
         total = p * k if total is None else total + p * k
         count += k
         freq = f
+    assert total is not None and freq is not None  # usable is not empty
     power = total / count
     dof = 2.0 * count / (1.0 + 2.0 * HANN_OVERLAP_CORRELATION**2)
     back = background(power, width) / (stats.chi2.median(dof) / dof)

@@ -174,7 +174,7 @@ def _lyapunov(
     by_len: dict[int, list[int]] = {}
     for i, s in enumerate(signals):
         by_len.setdefault(len(s.u), []).append(i)
-    for n, idx in by_len.items():
+    for idx in by_len.values():
         V = np.stack([system.drive(signals[i].u) for i in idx])  # (S, n, d)
         Vr = np.ascontiguousarray(np.repeat(V, L, axis=0).transpose(1, 0, 2))  # (n, S L, d)
         ex = lyapunov.exponents(system, Vr, np.tile(X0, (len(idx), 1)), k, rng, progress=progress)
@@ -239,8 +239,9 @@ def check(system: DrivenSystem, settings: Settings | None = None, progress: Prog
     apart = replicas.APART * scale
     timing: dict[str, float] = {}
     notes: list[str] = []
-    if getattr(system, "reference_note", ""):
-        notes.append(system.reference_note)
+    reference_note = getattr(system, "reference_note", "")  # a fitted model's view says what it compares with
+    if reference_note:
+        notes.append(reference_note)
 
     t0 = time.perf_counter()
     progress("evidence", None, "algebraic evidence")

@@ -167,7 +167,7 @@ def run(
         spread = np.zeros((n, S))
         fams = {
             f: [j for j, i in enumerate(idx) if signals[i].family == f]
-            for f in sorted({signals[i].family for i in idx if signals[i].family})
+            for f in sorted({fam for fam in (signals[i].family for i in idx) if fam})
         }
         hist = {f: np.zeros(n) for f in fams}
         report_every = max(1, n // 20)

@@ -67,10 +67,10 @@ def render(r: Report, console: Console) -> None:
     t.add_column("status")
     for base, group in _by_base(r.signals):
         dist = max(s.final_distance for s in group)
-        afters = [s.converged_after for s in group]
-        after = "-" if any(a is None for a in afters) else max(afters)
-        if after != "-" and r.continuous:
-            after = f"{after} ({after * r.sampling_time:.4g})"
+        afters = [s.converged_after for s in group if s.converged_after is not None]
+        after = "-"
+        if len(afters) == len(group):
+            after = f"{max(afters)} ({max(afters) * r.sampling_time:.4g})" if r.continuous else str(max(afters))
         lams = [r.exponents[s.name].largest * per for s in group if s.name in r.exponents]
         worst = max(group, key=lambda s: _RANK[s.status])
         count = sum(s.status == worst.status for s in group)

@@ -14,6 +14,7 @@ initial state under *every* input, so the check tries several kinds of them.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,7 +88,7 @@ def training_segments(system: DrivenSystem, n: int) -> list[tuple[int, np.ndarra
     return [(o, seg[o : o + m]) for o in offsets]
 
 
-def battery(system: DrivenSystem, n: int, rng: np.random.Generator, extra: list[Sine] = ()) -> list[TestSignal]:
+def battery(system: DrivenSystem, n: int, rng: np.random.Generator, extra: Sequence[Sine] = ()) -> list[TestSignal]:
     """The test inputs for a replica test of ``n`` steps."""
     dom = system.inputs
     dt = system.sampling_time

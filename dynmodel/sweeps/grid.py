@@ -208,7 +208,7 @@ def expand(key: str, value: Any, where: str) -> list[Any]:
                 import numpy as np
 
                 a, b, n = (_number(args[0]), _number(args[1]), args[2]) if len(args) == 3 else (None, None, None)
-                if a is None or isinstance(n, bool) or not isinstance(n, int) or n < 1:
+                if a is None or b is None or isinstance(n, bool) or not isinstance(n, int) or n < 1:
                     raise ValueError
                 if kind == "geomspace" and (a <= 0 or b <= 0):
                     raise ValueError

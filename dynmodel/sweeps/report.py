@@ -9,10 +9,10 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from ..metrics import METRIC_LABELS
 from .grid import short_names, shown
 from .results import SweepResult
 
-LABELS = {"nmse": "NMSE %", "rmse": "RMSE", "fit": "fit %", "max": "MAX"}
 #: rows of the ranked table printed on a terminal (results.csv holds every point)
 MAX_ROWS = 30
 
@@ -37,7 +37,7 @@ def render(result: SweepResult, out: Console, max_rows: int = MAX_ROWS) -> None:
     out.print(head)
     short = short_names(result.keys)
     splits = [col.rsplit(".", 1)[0] for col in _metric_columns(result) if col.endswith(f".{key.metric}")]
-    name = LABELS.get(key.metric, key.metric)
+    name = METRIC_LABELS.get(key.metric, key.metric)
     table = Table(title=f"{name} of the free run per split, ranked by {key.split} (best first)", title_justify="left")
     table.add_column("point")
     for k in result.keys:

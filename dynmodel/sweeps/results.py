@@ -19,11 +19,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..metrics import HIGHER_IS_BETTER
 from .grid import Point, short_names, shown
 
 #: metrics in the order the tables show them; other numeric entries follow alphabetically
 METRIC_ORDER = ("nmse", "rmse", "fit", "max", "nmse_1", "samples")
-HIGHER_IS_BETTER = ("fit",)
 STATUS_RANK = {"ok": 0, "diverged": 1, "error": 2}
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import threading
 import warnings
+from collections.abc import Callable
 from typing import Any, Literal
 
 import numpy as np
@@ -99,13 +100,6 @@ class AnnealedRnn(EchoStateNetwork):
         stages: list[dict[str, Any]] = []
         interrupted = False
         while True:
-            since = {"step": 0, "best": score}
-
-            def stop(step: int, best: float) -> bool:
-                if best < since["best"]:
-                    since.update(step=step, best=best)
-                return halt.is_set() or (p.grow and step - since["step"] >= p.patience)
-
             result = anneal(
                 state,
                 score,
@@ -113,8 +107,8 @@ class AnnealedRnn(EchoStateNetwork):
                 moves,
                 Schedule(p.steps, p.t0, p.t_end),
                 rng,
-                on_step=lambda step, T, cur, best, info: report(state.size, step, T, best),
-                stop=stop,
+                on_step=_stage_reporter(report, state.size),
+                stop=_stage_stop(score, halt, p.patience if p.grow else None),
             )
             stages.append(
                 {
@@ -211,3 +205,27 @@ class AnnealedRnn(EchoStateNetwork):
         from .extensions import extensions
 
         return extensions(cause, ctx)
+
+
+def _stage_reporter(
+    report: Callable[[int, int, float, float], None], size: int
+) -> Callable[[int, float, float, float, dict[str, Any]], None]:
+    """The annealing ``on_step`` callback of one growth stage: ``report(size, step, temperature, best)``."""
+
+    def on_step(step: int, temperature: float, current: float, best: float, info: dict[str, Any]) -> None:
+        report(size, step, temperature, best)
+
+    return on_step
+
+
+def _stage_stop(score: float, halt: threading.Event, patience: int | None) -> Callable[[int, float], bool]:
+    """The annealing ``stop`` callback of one growth stage, starting from ``score``: stop when ``halt`` is
+    set or, with a ``patience``, when the best score has not improved for that many steps."""
+    since = {"step": 0, "best": score}
+
+    def stop(step: int, best: float) -> bool:
+        if best < since["best"]:
+            since.update(step=step, best=best)
+        return halt.is_set() or (patience is not None and step - since["step"] >= patience)
+
+    return stop

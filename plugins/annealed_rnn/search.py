@@ -13,6 +13,7 @@ the length of the recordings.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import cast
 
 import numpy as np
 
@@ -41,39 +42,44 @@ def _pick(mask: np.ndarray, rng: np.random.Generator) -> tuple | None:
     return np.unravel_index(int(idx[rng.integers(idx.size)]), mask.shape)
 
 
+def _dense(s: Network) -> np.ndarray:
+    """C of a network under search: dense (``Network.dense``), the form the moves edit."""
+    return cast(np.ndarray, s.C)
+
+
 def make_moves(p: AnnealedRnnParams):
     bound = p.max_singular
     step = p.step
 
     def add(s: Network, rng, scale):
-        ij = _pick(s.C == 0, rng)
+        ij = _pick(_dense(s) == 0, rng)
         if ij is None:
             return None
-        C = s.C.copy()
+        C = _dense(s).copy()
         C[ij] = rng.standard_normal()
         return replace(s, C=rescale(C, bound))
 
     def cut(s: Network, rng, scale):
-        ij = _pick(s.C != 0, rng)
+        ij = _pick(_dense(s) != 0, rng)
         if ij is None:
             return None
-        C = s.C.copy()
+        C = _dense(s).copy()
         C[ij] = 0.0
         return replace(s, C=C)
 
     def rewire(s: Network, rng, scale):
-        src, dst = _pick(s.C != 0, rng), _pick(s.C == 0, rng)
+        src, dst = _pick(_dense(s) != 0, rng), _pick(_dense(s) == 0, rng)
         if src is None or dst is None:
             return None
-        C = s.C.copy()
+        C = _dense(s).copy()
         C[dst], C[src] = C[src], 0.0
         return replace(s, C=rescale(C, bound))
 
     def weight(s: Network, rng, scale):
-        ij = _pick(s.C != 0, rng)
+        ij = _pick(_dense(s) != 0, rng)
         if ij is None:
             return None
-        C = s.C.copy()
+        C = _dense(s).copy()
         C[ij] += step * scale * rng.standard_normal()
         return replace(s, C=rescale(C, bound))
 
@@ -118,7 +124,7 @@ def grow(s: Network, k: int, p: AnnealedRnnParams, rng: np.random.Generator) -> 
     """Append k elements wired like the initial network (constructive growth, 6.4.5); C dense."""
     m = s.size + k
     C = np.zeros((m, m))
-    C[: s.size, : s.size] = s.C
+    C[: s.size, : s.size] = _dense(s)
     new = np.zeros((m, m), dtype=bool)
     new[s.size :, :] = True
     new[:, s.size :] = True
@@ -286,6 +292,7 @@ class Evaluator:
         elif isinstance(scorer, Moments):  # FOS: the validation moments give the error
             sse = scorer.residual_ss(W[:-1], W[-1])
         else:
+            assert isinstance(scorer, list)  # least squares: where the validation pass resumes
             sse = self._internal_sse(state, args, W, scorer)
         if sse is None:
             return np.inf

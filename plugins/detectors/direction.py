@@ -48,7 +48,7 @@ class DirectionDependence(Detector):
         best = None
         check = ctx.check_rows()
         n = ctx.n
-        for j, name in enumerate(ctx.input_names):
+        for j in range(len(ctx.input_names)):
             u_segs = ctx.inputs(j)
             u = np.concatenate(u_segs)
             lo, hi = np.quantile(u, [0.01, 0.99])

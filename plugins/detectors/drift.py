@@ -113,10 +113,10 @@ class SensorDrift(Detector):
         if not rows or sum(len(r) for r in rows) < MIN_BLOCKS:
             return None
         Z = np.vstack(rows)
-        seg_id, rec_id = np.array(seg_id), np.array(rec_id)
+        segments, recordings = np.array(seg_id), np.array(rec_id)
         eb, tb, feats = Z[:, 0], Z[:, 1], Z[:, 2:]
-        recs = sorted(set(rec_id.tolist()))
-        consts = np.column_stack([(rec_id == r).astype(float) for r in recs])
+        recs = sorted(set(recordings.tolist()))
+        consts = np.column_stack([(recordings == r).astype(float) for r in recs])
         X0 = np.hstack([consts, feats])
         K = len(eb)
         span = float(max(s.stop for s in segs) * ctx.sampling_time)
@@ -127,7 +127,7 @@ class SensorDrift(Detector):
         for tau, linear in alternatives:
             terms = _terms(tau, linear)
             D = np.column_stack([time_function(fn, tb) for fn in terms])
-            F, p, rho, coef = _f_test(eb, X0, D, seg_id)
+            F, p, rho, coef = _f_test(eb, X0, D, segments)
             results.append((p, -F, tau, linear, terms, F, rho, coef))
         results.sort(key=lambda r: (r[0], r[1]))
         p, _, tau, linear, terms, F, rho, coef = results[0]

@@ -15,6 +15,8 @@ order, the smallest lag L whose features 1..L reach 90 % of the in-sample share 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from dynmodel.diagnose.context import Context
@@ -36,7 +38,7 @@ class MissingDynamics(Detector):
         longest = max(s.n for s in ctx.segments)
         fit_rows = int((~ctx.check_rows()).sum())
         width = len(ctx.input_names) + 1
-        out = []
+        out: list[Any] = []
         for lag in LAGS:
             if lag > longest / 20 or (len(out) + 2) * width * ROWS_PER_FEATURE > fit_rows:
                 break

@@ -44,7 +44,7 @@ class FreeRunInstability(Detector):
         st = ctx.sampling_time
         for split in ("train", "validation", "test"):
             rows = fit.ds.scored(split, warmup=fit.model.warmup)
-            for rec, a, b in rows:
+            for rec, _a, b in rows:
                 k = fit.runs[rec].diverged_at
                 if k is not None and k < b:
                     name = fit.ds.recordings[rec].name

@@ -65,6 +65,8 @@ class InsufficientMemory(Detector):
                 dep = holdout_share(e, base, F, check)
                 if best is None or dep.share > best[0].share:
                     best = (dep, j, k, base, F, e)
+        if best is None:  # no input channel
+            return None
         dep, j, k, base, F, e = best
         grid = np.geomspace(taus[0], taus[-1], num=max(2, 6 * len(taus)))
         lags_only = base[:, :-2]  # without the trend terms, which would soak up the slowest averages

@@ -17,6 +17,8 @@ free-running estimation halves the error of a one-step fit without noticeable no
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from dynmodel.diagnose.bootstrap import batch_means_test
@@ -60,8 +62,8 @@ class NoiseBias(Detector):
         _, y2 = other.residual(split)
         var = np.maximum(np.var(y, axis=0), np.finfo(float).tiny)
         if not (np.isfinite(y1).all() and np.isfinite(y2).all()):
-            evidence = {"statistic": "free-running refit", "note": "a free run diverged on the comparison split"}
-            return self.finding(ctx, 0.0, False, "cannot compare: a free run diverged", evidence)
+            diverged = {"statistic": "free-running refit", "note": "a free run diverged on the comparison split"}
+            return self.finding(ctx, 0.0, False, "cannot compare: a free run diverged", diverged)
         e1 = (((y - y1) ** 2) / var).sum(axis=1)
         e2 = (((y - y2) ** 2) / var).sum(axis=1)
         t, p, batches = batch_means_test(e1 - e2)
@@ -79,7 +81,7 @@ class NoiseBias(Detector):
                 for s in ("train", "validation")
                 if s in f.metrics
             }
-        evidence = {
+        evidence: dict[str, Any] = {
             "statistic": "paired reduction of the free-run squared error by free-running estimation, batch-means "
             "signed-rank test",
             "split": split,

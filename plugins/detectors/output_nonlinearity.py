@@ -19,6 +19,8 @@ Measured outputs are never features: y = y_hat + e contains the residual itself.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.polynomial import legendre
 
@@ -63,7 +65,7 @@ class OutputNonlinearity(Detector):
         longest = max(s.n for s in ctx.segments)
         fit_rows = int((~ctx.check_rows()).sum())
         n_in = len(ctx.input_names)
-        out = []
+        out: list[Any] = []
         for lag in LAGS:
             trial = out + [lag]
             features = len(trial) * (len(DEGREES) + 1 + n_in) + len(DEGREES) * n_in + 3

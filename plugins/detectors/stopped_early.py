@@ -12,6 +12,8 @@ Score: 1 - MSE_longer / MSE. A refit that diverges is no evidence.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from dynmodel.diagnose.bootstrap import batch_means_test
@@ -38,7 +40,7 @@ class StructureStoppedEarly(Detector):
         if y.size == 0 or not np.isfinite(y0).all():
             return None  # a diverging model: free-run-instability's case
         var = np.maximum(np.var(y, axis=0), np.finfo(float).tiny)
-        tried = []
+        tried: list[dict[str, Any]] = []
         for ext in proposals[:REFITS]:
             ctx.progress(self.cause, None, ext.summary)
             try:
@@ -55,7 +57,7 @@ class StructureStoppedEarly(Detector):
             share = float(1.0 - e1.mean() / max(e0.mean(), np.finfo(float).tiny))
             tried.append({"extension": ext.summary, "nmse": other.nmse(split), "share": share, "_e": (e0, e1, ext)})
         usable = [t for t in tried if "_e" in t]
-        evidence = {
+        evidence: dict[str, Any] = {
             "statistic": f"paired reduction of the free-run squared error on the {split} split by a refit with a "
             "longer selection, batch-means signed-rank test",
             "split": split,

@@ -10,14 +10,14 @@ on free-running error by the predictor-corrector algorithm of section 5.3.2.
 from __future__ import annotations
 
 import warnings
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal, TypeVar, cast
 
 import numpy as np
 import scipy.sparse as sp
 
 from dynmodel import kernels, readout, regression
 from dynmodel.data.training import TrainingData
-from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
+from dynmodel.family import Family, FamilyParams, Progress, Simulation, constructor_arguments, no_progress
 from dynmodel.moments import Moments
 
 from .network import Network, build_network, largest_singular_value, spectral_radius
@@ -39,13 +39,16 @@ def _teacher_feedback(y: np.ndarray) -> np.ndarray:
     return f
 
 
+_Esn = TypeVar("_Esn", bound="EchoStateNetwork")
+
+
 class EchoStateNetwork(Family):
     name = "esn"
     description = "echo state network, internal or external approach (thesis 5.2.3, 5.3.2)"
-    Params = EsnParams
+    Params: ClassVar[type[FamilyParams]] = EsnParams
 
-    @property  # type: ignore[override]
-    def stability_hint(self) -> str:
+    @property
+    def stability_hint(self) -> str:  # type: ignore[override]  # a class attribute in Family, per mode here
         if self.external:
             return "use cost: mse_inf, the internal mode or a smaller spectral scale"
         return (
@@ -181,7 +184,7 @@ class EchoStateNetwork(Family):
         """The splits whose moments the readout needs."""
         return ("train", "validation") if self._uses_validation() and data.has("validation") else ("train",)
 
-    def _fit_readout(self, data: TrainingData, cost: str, progress: Progress) -> EchoStateNetwork:
+    def _fit_readout(self: _Esn, data: TrainingData, cost: str, progress: Progress) -> _Esn:
         """Readout of ``network_`` on the training split; refinement for cost mse_inf (external mode).
 
         The network is driven chunk by chunk and only the moments of the readout features are
@@ -293,7 +296,11 @@ class EchoStateNetwork(Family):
             raise ValueError(
                 f"this external-mode network tunes in on the first {tune} measured output samples; got {have}"
             )
-        Y = np.zeros((0, self.n_outputs_)) if tune == 0 else np.ascontiguousarray(y_measured[:tune], dtype=np.float64)
+        Y = (
+            np.zeros((0, self.n_outputs_))
+            if tune == 0 or y_measured is None
+            else np.ascontiguousarray(y_measured[:tune], dtype=np.float64)
+        )
         lo, hi = bounds if bounds is not None else (np.full(self.n_outputs_, -np.inf), np.full(self.n_outputs_, np.inf))
         _, y, _, div = kernels.free_run_clipped(
             *self.network_.kernel_args(),
@@ -349,11 +356,12 @@ class EchoStateNetwork(Family):
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        net = self.network_
+        net = self.network_.sparse()  # fitted networks hold C in CSR form
+        C = cast(sp.csr_matrix, net.C)
         arrays = {
-            "C_indptr": net.C.indptr.astype(np.int64),
-            "C_indices": net.C.indices.astype(np.int64),
-            "C_data": net.C.data,
+            "C_indptr": C.indptr.astype(np.int64),
+            "C_indices": C.indices.astype(np.int64),
+            "C_data": C.data,
             "B_in": net.B_in,
             "B_back": net.B_back,
             "c0": net.c0,
@@ -394,10 +402,10 @@ class EchoStateNetwork(Family):
 
     def summary(self) -> dict[str, Any]:
         net = self.network_
-        info = {
+        info: dict[str, Any] = {
             "elements": net.size,
             "mode": self.params.mode,
-            "connections": int(net.C.nnz),
+            "connections": int(np.count_nonzero(net.C)) if isinstance(net.C, np.ndarray) else int(net.C.nnz),
             "sigma(C)": round(largest_singular_value(net.C), 6),
             "rho(C)": round(spectral_radius(net.C), 6),
             "readout": self.params.readout.solver,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, replace
+from typing import cast
 
 import numpy as np
 import scipy.sparse as sp
@@ -59,7 +60,7 @@ class Network:
     def kernel_args(self) -> tuple:
         """(indptr, indices, data, B, c0, a, g) for :mod:`dynmodel.kernels`. Unsigned indices:
         they spare the compiled gather numba's check for negative indices (20 - 30 % of a step)."""
-        C = self.sparse().C
+        C = cast(sp.csr_matrix, self.sparse().C)
         return (
             C.indptr.astype(np.uint64),
             C.indices.astype(np.uint64),
@@ -112,7 +113,8 @@ def build_network(p: EsnParams, n_inputs: int, n_outputs: int, rng: np.random.Ge
         c0 = np.asarray(w.c0, dtype=np.float64) if w.c0 is not None else np.zeros(m)
         a = np.asarray(w.relaxation, dtype=np.float64) if w.relaxation is not None else None
     else:
-        C = _sparse_normal(rng, (m, m), float(p.connectivity), 1.0, False)
+        assert p.connectivity is not None  # set by EsnParams' validator
+        C = _sparse_normal(rng, (m, m), p.connectivity, 1.0, False)
         B_in = _sparse_normal(rng, (m, n_inputs), p.input_connectivity, p.input_scale, True)
         B_back = _sparse_normal(rng, (m, n_back), p.input_connectivity, p.feedback_scale, True)
         c0 = _sparse_normal(rng, (m, 1), p.bias_connectivity, p.bias_scale, False)[:, 0]

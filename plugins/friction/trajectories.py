@@ -90,7 +90,7 @@ class Trajectory:
             self.phase = rng.uniform(0, 2 * math.pi, p.components)
         elif p.kind == "multisine":
             m = np.arange(max(1, math.ceil(lo * p.period - 1e-9)), math.floor(hi * p.period + 1e-9) + 1)
-            self.omega = 2 * math.pi * m / p.period
+            self.omega = np.asarray(2 * math.pi * m / p.period, dtype=np.float64)
             self.amp = np.full(m.size, p.std * math.sqrt(2.0 / m.size))
             self.phase = rng.uniform(0, 2 * math.pi, m.size)
         else:

@@ -114,7 +114,7 @@ class LorenzNet(Family):
         )
         best = int(np.argmin([r[1] for r in runs]))
         state = runs[best][0]
-        self.search_ = {"restarts": [r[2] for r in runs], "best_run": best}
+        self.search_: dict[str, Any] | None = {"restarts": [r[2] for r in runs], "best_run": best}
         if any(r[2].get("interrupted") for r in runs):
             warnings.warn(
                 f"the annealing was interrupted (Ctrl-C): the model keeps the best network found so far "

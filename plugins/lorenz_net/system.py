@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dynmodel.reliability.system import DrivenSystem, Evidence, InputDomain
+from dynmodel.reliability.system import DrivenSystem, Evidence, Implication, InputDomain
 
 from .elements import simulate_network, step_elements
 
@@ -77,7 +77,7 @@ class LorenzNetworkSystem(DrivenSystem):
         stiff = float(
             np.max(self.params[:, 3] * np.maximum.reduce([self.params[:, 0], self.params[:, 2], np.ones(self.m)])) * h
         )
-        implies = "reliable" if positive and lower and stiff < 1.0 else "undecided"
+        implies: Implication = "reliable" if positive and lower and stiff < 1.0 else "undecided"
         statement = (
             "every element has sigma, b, alpha > 0, so it forgets its initial state for any drive "
             "(Lyapunov function of eq. 4.44 / 4.45), and the couplings are strictly lower triangular, so "

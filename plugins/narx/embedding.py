@@ -11,6 +11,7 @@ from __future__ import annotations
 import itertools
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,7 +101,7 @@ def build_embedding(
     lags: dict[str, list[int]] | None,
     input_names: list[str],
     output_names: list[str],
-    extra: list[tuple[str, int]] = (),
+    extra: Sequence[tuple[str, int]] = (),
     degree: int = 3,
     constant: bool = True,
 ) -> Embedding:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -282,7 +283,7 @@ def refine(
     problem: FreeRunProblem,
     w0: np.ndarray,
     mixes: list[float],
-    solver: str,
+    solver: Literal["lm", "trf"],
     max_nfev: int,
     tol: float,
     after_step: Callable[[float, np.ndarray, object], None] | None = None,

@@ -284,7 +284,7 @@ class Narx(Family):
             )
             if cand.degree not in best or err < best[cand.degree][0]:
                 best[cand.degree] = (err, cand, found)
-        finalists = []
+        finalists: list[dict[str, Any]] = []
         for err, cand, (exps, outs, weights, info) in sorted(best.values(), key=lambda b: b[0]):
             if finalists and not np.isfinite(err):
                 continue
@@ -507,7 +507,9 @@ class Narx(Family):
     def _ridge(self, data: TrainingData, train: pool_mod.Patterns, progress: Progress) -> None:
         """Ridge weights for the selected terms. ``auto``: the factor whose free run has the lowest
         validation error (thesis 6.3.2: ridge as a stabilizer, its factor tuned on validation)."""
-        vectors, factors = ridge_candidates(train, self.exponents_, self.term_output_, self.weights_, self.params.ridge)
+        ridge = self.params.ridge
+        assert ridge is not None  # called only with a ridge
+        vectors, factors = ridge_candidates(train, self.exponents_, self.term_output_, self.weights_, ridge)
         if len(vectors) == 1:
             self.weights_, self.ridge_ = vectors[0], {"alpha": factors[0]}
             return
@@ -548,9 +550,10 @@ class Narx(Family):
         val = Scored.of(data, "validation", st.start) if data.has("validation") else None
         finite_clip = (np.maximum(self.clip_lo_, self._bounds[0]), np.minimum(self.clip_hi_, self._bounds[1]))
         penalty = None
-        if getattr(self, "ridge_", None) is not None:
+        ridge_ = getattr(self, "ridge_", None)
+        if ridge_ is not None:
             const = ~self.exponents_.any(axis=1)
-            alpha = np.asarray(self.ridge_["alpha"])[self.term_output_]
+            alpha = np.asarray(ridge_["alpha"])[self.term_output_]
             penalty = np.where(const, 0.0, np.sqrt(alpha / (scored.n * scored.var[self.term_output_])))
         problem = FreeRunProblem(st, data, scored, finite_clip, penalty)
         check, band = self._check_structure(), self._check_band()
@@ -558,7 +561,7 @@ class Narx(Family):
         mixes = [1.0 - i / r.ramp for i in range(1, r.ramp + 1)] if unstable else [0.0]
 
         def record(mix: float, w: np.ndarray, res) -> None:
-            entry = {
+            entry: dict[str, Any] = {
                 "mix": float(mix),
                 "train_cost": float(2 * res.cost),
                 "nfev": int(res.nfev),
@@ -666,7 +669,7 @@ class Narx(Family):
         src, ch, lag = (
             np.asarray(arrays[k], dtype=np.int64) for k in ("regressor_source", "regressor_channel", "regressor_lag")
         )
-        self.embedding_ = Embedding([Regressor(int(s), int(c), int(l), n) for s, c, l, n in zip(src, ch, lag, names)])
+        self.embedding_ = Embedding([Regressor(int(s), int(c), int(k), n) for s, c, k, n in zip(src, ch, lag, names)])
         self.exponents_ = np.asarray(arrays["exponents"], dtype=np.int64).reshape(-1, len(names))
         self.term_output_ = np.asarray(arrays["term_output"], dtype=np.int64)
         self.weights_ = np.asarray(arrays["weights"], dtype=np.float64)
@@ -695,8 +698,9 @@ class Narx(Family):
         info["warmup"] = self.warmup
         if np.isfinite(self.clip_lo_).any():
             info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(self.clip_lo_, self.clip_hi_)]
-        if getattr(self, "ridge_", None):
-            info["ridge factor"] = self.ridge_["alpha"]
+        ridge_ = getattr(self, "ridge_", None)
+        if ridge_:
+            info["ridge factor"] = ridge_["alpha"]
         if self.refinement_:
             last = self.refinement_[-1]
             info["mse_inf solves"] = sum(1 for e in self.refinement_[1:] if "mix" in e)

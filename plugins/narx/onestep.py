@@ -70,7 +70,7 @@ def fos_structure(
             "max_terms or threshold"
         )
     by_free_run = use_val and p.stop_on == "free_run" and free_run_error is not None
-    lazy = pool_mod.LazyColumns(val.X, E) if use_val and not by_free_run else None
+    lazy = pool_mod.LazyColumns(val.X, E) if val is not None and use_val and not by_free_run else None
     forced = (0,) if p.constant else ()
     rows, outs, weights, info = [], [], [], []
     for k, name in enumerate(output_names):
@@ -91,7 +91,7 @@ def fos_structure(
             max_terms=p.max_terms,
             threshold=p.threshold,
             Pv=lazy,
-            yv=val.Y[:, k] if lazy is not None else None,
+            yv=val.Y[:, k] if lazy is not None and val is not None else None,
             patience=p.patience or 1,
             validation=score,
         )
@@ -158,7 +158,7 @@ def ridge_candidates(
     or for each of 29 factors over [1e-14, 1] x the largest squared singular value (``'auto'``,
     the same grid for every output by position). Returns the weight vectors and, per vector,
     the factor of each output."""
-    const = ~exps.any(axis=1)
+    const = np.asarray(~exps.any(axis=1))
     per_output = []
     for k in range(int(outs.max()) + 1 if len(outs) else 0):
         idx = np.flatnonzero(outs == k)

@@ -218,7 +218,7 @@ def free_run_selection(
     best_err, since_best = np.inf, 0
     while True:
         st = make_structure(emb, exps, outs, n_out, start, clip)
-        if use_val:
+        if use_val and val is not None and p.patience is not None:  # (use_val implies both)
             err = split_error(st, data, val, w, band)
             history[-1]["validation_nmse"] = None if not np.isfinite(err) else 100 * err
             if err < best_err * (1 - 1e-12):

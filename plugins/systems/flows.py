@@ -43,6 +43,9 @@ class _Flow(TestSystem):
     continuous = True
     kind: int
     p: np.ndarray
+    params: _FlowParams
+    box_low: list[float]
+    box_high: list[float]
 
     def drive(self, u: np.ndarray) -> np.ndarray:
         u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)[:, :1]
