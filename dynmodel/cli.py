@@ -446,7 +446,8 @@ def inspect(
 
 
 # ------------------------------------------------------------------------------ reliability-check
-def _parse_params(items: list[str]) -> dict[str, Any]:
+def _parse_params(items: list[str], example: str = "a=3.5") -> dict[str, Any]:
+    """The values of repeated ``--param key=value`` options, each value read as YAML."""
     import yaml
 
     from .errors import SpecError
@@ -454,13 +455,15 @@ def _parse_params(items: list[str]) -> dict[str, Any]:
     values: dict[str, Any] = {}
     for item in items:
         if "=" not in item:
-            raise SpecError(f"'{item}' is not key=value", "--param", "write e.g. --param a=3.5")
+            raise SpecError(f"'{item}' is not key=value", "--param", f"write e.g. --param {example}")
         key, raw = item.split("=", 1)
         try:
             values[key.strip()] = yaml.safe_load(raw)
         except yaml.YAMLError:
             raise SpecError(
-                f"cannot read the value of '{item}'", "--param", "write e.g. --param C=[[0.3,2],[-0.5,-1.9]]"
+                f"cannot read the value of '{item}'",
+                "--param",
+                f"write the value as YAML, e.g. --param {example} or --param C=[[0.3,2],[-0.5,-1.9]]",
             ) from None
     return values
 
@@ -761,7 +764,6 @@ def control(
 ) -> None:
     """Feed-forward control (thesis 6.4): P-control of a plant, the model's force added from the switch on;
     NMSE / MAX of the tracking error before and after, alpha and beta, and the perfect model's limits."""
-    import yaml
 
     from . import control as ctl
     from . import store
@@ -777,20 +779,7 @@ def control(
     )
     t0 = time.perf_counter()
     model = store.load(model_path)
-    described = None
-    if plant is not None:
-        if not plant.is_file():
-            raise SpecError("plant description not found", str(plant), "check the path")
-        from .spec import read_spec_text
-
-        try:
-            described = yaml.safe_load(read_spec_text(plant))
-        except yaml.YAMLError as exc:
-            raise SpecError(f"malformed YAML: {str(exc).splitlines()[0]}", str(plant), "check the file") from None
-        if not isinstance(described, dict):
-            raise SpecError(
-                "the plant description must be a mapping", str(plant), "write generator: NAME and params: {...}"
-            )
+    described = ctl.read_plant(plant) if plant is not None else None
     name, params = ctl.plant_source(model, described)
     the_plant, resolved = ctl.make_plant(name, params, _parse_params(param))
     settings = ctl.Settings(
@@ -906,8 +895,6 @@ def generate(
     force: bool = _FORCE,
 ) -> None:
     """Write a generated input/output recording as CSV (for trying file-based specs)."""
-    import yaml
-
     from . import registry
     from .errors import SpecError
     from .paths import check_outputs
@@ -916,12 +903,7 @@ def generate(
     gen = registry.source(generator)
     columns = ["t", *gen.input_names, *gen.output_names]
     check_outputs([(out_path, "csv", "--out"), (plot, "plot", "--plot")], None, force)  # replaces a CSV with --force
-    values: dict[str, Any] = {}
-    for item in param:
-        if "=" not in item:
-            raise SpecError(f"'{item}' is not key=value", "--param", "write e.g. --param a0=0.7")
-        key, raw = item.split("=", 1)
-        values[key.strip()] = yaml.safe_load(raw)
+    values = _parse_params(param, example="a0=0.7")
     try:
         params = gen.Params.model_validate(values)
     except ValueError as exc:

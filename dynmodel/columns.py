@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from .data.dataset import Recording
+from .data.finite import check_finite
 from .errors import DataError
 
 
@@ -69,18 +70,6 @@ def default_names(prefix: str, k: int) -> list[str]:
     return [prefix] if k == 1 else [f"{prefix}{j}" for j in range(k)]
 
 
-def _check_finite(a: np.ndarray, names: list[str], where: str) -> None:
-    bad = ~np.isfinite(a)
-    if bad.any():
-        row, col = (int(i[0]) for i in np.nonzero(bad))
-        raise DataError(
-            f"'{names[col]}' has {'NaN' if np.isnan(a[row, col]) else 'inf'} at sample {row} "
-            f"({int(bad[:, col].sum())} non-finite value(s))",
-            where,
-            "remove, interpolate or fill those samples before fitting",
-        )
-
-
 def recordings(
     u: Any,
     y: Any,
@@ -120,7 +109,7 @@ def recordings(
                     f"give every recording the same {what} columns",
                 )
         name = label if len(us) == 1 else f"{label}[{i}]"
-        _check_finite(np.hstack([ua, ya]), ins + outs, name)
+        check_finite(np.hstack([ua, ya]), ins + outs, name)
         recs.append(Recording(name, ua, ya))
     if set(ins) & set(outs):
         raise DataError(

@@ -268,10 +268,6 @@ class LocalPoolExecutor(Executor):
                     else:
                         os.environ[key] = value
 
-    def pids(self) -> list[int]:
-        """Process ids of the current workers."""
-        return [p.pid for p in list((self._pool._processes or {}).values()) if p.pid is not None]
-
     def _kill(self, pool: ProcessPoolExecutor) -> None:
         for proc in list((pool._processes or {}).values()):
             if proc.is_alive():
@@ -337,13 +333,9 @@ class DaskExecutor(Executor):
     def warm(self) -> None:
         """Let every current worker import dynmodel now (:func:`warm_worker`), without waiting."""
         workers = list(self.client.scheduler_info().get("workers", {}))
-        self._warming = [
+        self._warming = [  # held: Dask cancels a future nobody references
             self.client.submit(warm_worker, pure=False, workers=[w], allow_other_workers=False) for w in workers
         ]
-
-    def worker_pids(self) -> dict[str, int]:
-        """Process id of every worker, by worker address."""
-        return dict(self.client.run(os.getpid))
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         try:

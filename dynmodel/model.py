@@ -10,6 +10,7 @@ import numpy as np
 
 from .columns import is_pandas, is_recording_list, like_input, matrix, recordings, select
 from .data.dataset import Dataset
+from .data.finite import non_finite
 from .data.preprocess import Preprocessor
 from .errors import DataError
 from .family import Family
@@ -118,10 +119,9 @@ class FittedModel:
             u = u[:, None]
         if u.ndim != 2 or u.shape[1] != len(self.input_names):
             raise ValueError(f"expected {len(self.input_names)} input column(s) {self.input_names}, got {u.shape[1]}")
-        if not np.isfinite(u).all():
-            raise ValueError(
-                f"the input has NaN or inf at sample {int(np.flatnonzero(~np.isfinite(u).all(axis=1))[0])}"
-            )
+        problem = non_finite(u, self.input_names)
+        if problem is not None:
+            raise ValueError(f"input {problem}")
         return u
 
     def run(self, u, y_measured: np.ndarray | None = None) -> Run:

@@ -18,6 +18,7 @@ from typing import IO
 
 import numpy as np
 
+from .data.finite import check_finite
 from .data.readers import list_columns, read_columns
 from .errors import DataError
 from .model import FittedModel, Run
@@ -35,7 +36,6 @@ class PredictionInput:
     y_measured: np.ndarray | None  # measured outputs over the whole input file, when it has them
     time: np.ndarray  # (n,)
     time_name: str
-    time_from_file: bool
 
 
 def time_column(model: FittedModel, path: Path) -> str | None:
@@ -61,9 +61,7 @@ def read_inputs(model: FittedModel, input_path: Path, tune_in_path: Path | None 
         raise DataError("is a folder, not a tune-in file", str(tune_in_path), "give --tune-in a data file")
     cols = read_columns(input_path, model.input_names)
     u = np.column_stack([cols[n] for n in model.input_names])
-    if not np.isfinite(u).all():
-        row = int(np.flatnonzero(~np.isfinite(u).all(axis=1))[0])
-        raise DataError(f"the input has NaN or inf at sample {row}", str(input_path), "fill or remove those samples")
+    check_finite(u, model.input_names, str(input_path), "fill or remove those samples")
     try:
         measured = _outputs(model, input_path, len(u))
     except DataError:
@@ -100,8 +98,8 @@ def read_inputs(model: FittedModel, input_path: Path, tune_in_path: Path | None 
     if name is not None:
         t = read_columns(input_path, [name])[name]
         _check_step(model, t, name, input_path)
-        return PredictionInput(u, y_tune, measured, t, name, True)
-    return PredictionInput(u, y_tune, measured, np.arange(len(u)) * model.sampling_time, "t", False)
+        return PredictionInput(u, y_tune, measured, t, name)
+    return PredictionInput(u, y_tune, measured, np.arange(len(u)) * model.sampling_time, "t")
 
 
 def _outputs(model: FittedModel, path: Path, n: int | None) -> np.ndarray | None:

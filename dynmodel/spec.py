@@ -619,23 +619,6 @@ def _dotted(loc: tuple) -> str:
     return ".".join(parts).replace(".[", "[")
 
 
-def _loc_without_tags(loc: tuple) -> tuple:
-    out: list[Any] = []
-    bench_tag = False
-    for p in loc:
-        if isinstance(p, str) and (p == "file" or p.startswith("generator:")):
-            continue
-        if p == "benchmark" and out == ["data"] and not bench_tag:
-            bench_tag = True
-            continue
-        if _is_member_tag(p):
-            continue
-        if isinstance(p, str) and out == ["model"] and p in registry.families():
-            continue
-        out.append(p)
-    return tuple(out)
-
-
 def validation_summary(exc: Exception) -> str:
     """The first problem of a pydantic ValidationError on one line, as ``where: what``
     (unknown keys first); other exceptions give their first line."""
@@ -643,8 +626,12 @@ def validation_summary(exc: Exception) -> str:
     if not errors:
         return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
     e = next((x for x in errors if x["type"] == "extra_forbidden"), errors[0])
-    loc = _dotted(tuple(p for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-"))))
-    msg = "unknown key" if e["type"] == "extra_forbidden" else e["msg"]
+    path = tuple(p for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+    if e["type"] == "extra_forbidden" and path:
+        path, msg = path[:-1], f"unknown key '{path[-1]}'"
+    else:
+        msg = e["msg"]
+    loc = _dotted(path)
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, ") :]
     return f"{loc}: {msg}" if loc else msg

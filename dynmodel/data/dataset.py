@@ -26,6 +26,7 @@ from ..errors import DataError, SpecError
 from ..spec import SPLITS
 from . import resample
 from .checks import check_signals
+from .finite import check_finite
 from .readers import read_columns
 
 Range = tuple[int, int, int]  # (recording index, start, stop)
@@ -184,21 +185,6 @@ class Dataset:
 # ---------------------------------------------------------------- loading sources
 
 
-def _check_finite(arr: np.ndarray, names: list[str], where: str) -> None:
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        rows, cols = np.nonzero(bad)
-        row, col = int(rows[0]), int(cols[0])
-        kind = "NaN" if np.isnan(arr[row, col]) else "inf"
-        count = int(bad[:, col].sum())
-        raise DataError(
-            f"column '{names[col]}' has {kind} at sample {row} ({count} non-finite value"
-            f"{'s' if count > 1 else ''} in that column)",
-            where,
-            "remove, interpolate or fill those samples before fitting",
-        )
-
-
 def _read_recording(p: Any, src: dict[str, Any], resolve) -> tuple[np.ndarray, np.ndarray | None, Path, str]:
     """One file (or an {input, output} pair of files) of a file source: the input and output columns
     side by side, the time column (None without one), the path for messages and the recording's name."""
@@ -236,7 +222,7 @@ def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], flo
     for p in paths:
         data, t, path, label = _read_recording(p, src, resolve)
         names = [str(s) for s in selectors]
-        _check_finite(data, names, str(path))
+        check_finite(data, names, str(path))
         if t is not None:
             data, step = resample.uniform(t * float(src.get("time_unit") or 1.0), data, src.get("resample"), str(path))
             steps.append((step, str(path)))
@@ -302,7 +288,7 @@ def _generator_recording(src: dict[str, Any], where: str) -> tuple[Recording, fl
     if src.get("output"):
         idx = [out_names.index(c) for c in src["output"]]
         y, out_names = y[:, idx], [out_names[i] for i in idx]
-    _check_finite(np.column_stack([u, y]), in_names + out_names, f"{where} (generator {gen.name})")
+    check_finite(np.column_stack([u, y]), in_names + out_names, f"{where} (generator {gen.name})")
     label = f"{gen.name}(seed={src.get('seed', 0)})"
     st = src.get("sampling_time") or gen.sampling_time(params)
     return Recording(label, u, y), float(st), in_names, out_names

@@ -139,10 +139,6 @@ class Preprocessor:
             names += [f"{n}{mark}{d}" for n in self.input_names]
         return names + [derived_mod.channel_name(item) for item in self.derived]
 
-    @property
-    def n_model_inputs(self) -> int:
-        return len(self.input_names) * (1 + len(self.delay_lines)) + len(self.derived)
-
     def inputs(self, u: np.ndarray) -> np.ndarray:
         """Physical inputs (n, n_inputs) from a recording's start -> model inputs
         (n, n_inputs * (1 + len(delay_lines)) + len(derived))."""

@@ -12,9 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from ..extensions import merge
-from ..spec import validate_spec
 
-__all__ = ["merge", "portable", "apply"]
+__all__ = ["merge", "portable"]
 
 
 def portable(raw: dict[str, Any], base_dir: Path) -> dict[str, Any]:
@@ -37,9 +36,3 @@ def portable(raw: dict[str, Any], base_dir: Path) -> dict[str, Any]:
 def _absolute(p: str, base_dir: Path) -> Path:
     path = Path(p).expanduser()
     return path if path.is_absolute() else (base_dir / path).resolve()
-
-
-def apply(raw: dict[str, Any], patch: dict[str, Any], source: str, base_dir: Path):
-    """(patched mapping, validated spec); SpecError when the patch gives an invalid spec."""
-    patched = merge(raw, patch)
-    return patched, validate_spec(patched, source, base_dir)

@@ -13,7 +13,7 @@ from .system import ClosedLoop, DrivenSystem, Evidence, InputDomain, Sine, Syste
 
 def check_model(model, settings: Settings | None = None, progress=None, source: str = "") -> Report:
     """Check a fitted model (its family must expose ``driven_system()``)."""
-    from .check import no_progress
+    from ..family import no_progress
     from .model_view import model_system
 
     return check(model_system(model, source), settings, progress or no_progress)

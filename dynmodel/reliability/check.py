@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..family import Progress
+from ..family import Progress, no_progress
 from . import attractors, lyapunov, replicas, tune_in
 from .signals import TestSignal, battery, constant_levels
 from .system import DrivenSystem, Evidence, Sine
@@ -17,10 +17,6 @@ from .verdict import Verdict, decide
 
 #: relative size of the random nudge of the constant scan's initial states
 NUDGE = 1e-8
-
-
-def no_progress(stage: str, fraction: float | None, message: str) -> None:
-    return None
 
 
 @dataclass

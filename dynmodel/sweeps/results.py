@@ -208,8 +208,6 @@ class SweepResult:
             raise ImportError("SweepResult.to_pandas needs pandas: pip install pandas") from None
         return pd.DataFrame(self.rows, columns=self.columns)
 
-    to_dataframe = to_pandas
-
     # -- seeds -------------------------------------------------------------------------
     @property
     def summary(self) -> list[dict[str, Any]]:

@@ -238,8 +238,6 @@ class FreeRunProblem:
     clip: tuple[np.ndarray, np.ndarray]  # keeps residuals finite: the user's bounds or the divergence band
     penalty: np.ndarray | None = None  # per term, sqrt of the scaled ridge factor (0: not penalised)
     mix: float = 0.0
-    nfev: int = 0
-    njev: int = 0
     scale: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
@@ -253,7 +251,6 @@ class FreeRunProblem:
                 yield rows, ser.u[:stop], ser.y[:stop]
 
     def residuals(self, w: np.ndarray) -> np.ndarray:
-        self.nfev += 1
         parts = []
         for rows, u, y in self._series():
             yhat, _ = self.st.run(u, y, w, self.mix, None, self.clip)
@@ -264,7 +261,6 @@ class FreeRunProblem:
         return np.concatenate(parts)
 
     def jacobian(self, w: np.ndarray) -> np.ndarray:
-        self.njev += 1
         parts = []
         for rows, u, y in self._series():
             _, J, _ = self.st.run_jacobian(u, y, w, self.mix, self.clip)
@@ -275,7 +271,6 @@ class FreeRunProblem:
 
     def cost(self, w: np.ndarray) -> float:
         r = self.residuals(w)
-        self.nfev -= 1
         return float(r @ r)
 
 

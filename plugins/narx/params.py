@@ -184,17 +184,11 @@ class NarxFamilyParams(FamilyParams):
                     try:
                         parsed.append(item if isinstance(item, LagRange) else LagRange.model_validate(item))
                     except ValidationError as exc:
-                        errs = exc.errors()
-                        e = next((x for x in errs if x["type"] == "extra_forbidden"), errs[0])
-                        what = (
-                            f"unknown key '{e['loc'][-1]}'"
-                            if e["type"] == "extra_forbidden"
-                            else f"{'.'.join(str(x) for x in e['loc'])}: {e['msg']}"
-                            if e["loc"]
-                            else e["msg"].removeprefix("Value error, ")
-                        )
+                        from dynmodel.spec import validation_summary
+
                         raise ValueError(
-                            f"{name}: lag range {item}: {what}; write {{from: 0, to: 18, step: 2}} (ends included)"
+                            f"{name}: lag range {item}: {validation_summary(exc)}; "
+                            "write {from: 0, to: 18, step: 2} (ends included)"
                         ) from None
                 else:
                     raise ValueError(
