@@ -309,7 +309,9 @@ def _nan_input(folder: Path) -> None:
 
 
 def _gms(folder: Path) -> None:
-    """`dynmodel generate gms` data and a spec with the default NARX (test NMSE about 100 %)."""
+    """`dynmodel generate gms` data and a NARX with the one-step stop of before issue 14 (lags 0-2 / 1-2,
+    degree 2, patience 1, cost mse1): FOS stops before any input term, the free run ignores the position
+    (test NMSE about 100 %). Today's defaults reach under 1 % here, so the old ones stand for a useless model."""
     from dynmodel import registry
 
     gen = registry.source("gms")
@@ -317,7 +319,10 @@ def _gms(folder: Path) -> None:
     t = np.arange(3000) * gen.sampling_time(gen.Params())
     write_csv(folder / "gms.csv", {"t": t, "position": np.ravel(u), "force": np.ravel(y)})
     spec = {"name": "gms", "data": {"path": "gms.csv", "input": ["position"], "output": ["force"]}}
-    spec["model"] = {"family": "narx"}
+    lags = {"position": [{"from": 0, "to": 2}], "force": [{"from": 1, "to": 2}]}
+    params = {"lags": lags, "degree": 2, "stop_on": "one_step", "patience": 1, "bounds": None}
+    spec["model"] = {"family": "narx", "params": params}
+    spec["cost"] = "mse1"
     write_spec(folder, "gms.yaml", spec)
 
 
@@ -972,7 +977,7 @@ def cases() -> list[Case]:
         C("diagnose-growing-data", ["diagnose", "s.yaml"], expect="diverges", setup=_with_data("lab.csv", _growing)),
         # ---- whole runs (benchmark and slow suite)
         C(
-            "fit-default-narx-on-gms-says-useless",
+            "fit-one-step-narx-on-gms-says-useless",
             ["fit", "gms.yaml"],
             code=0,
             expect="of little use",

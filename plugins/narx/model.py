@@ -80,6 +80,7 @@ class Narx(Family):
         weights: Literal["lstsq", "recursion"] = "lstsq",
         ridge: float | Literal["auto"] | None = None,
         bounds: float | dict[str, tuple[float | None, float | None]] | None = 0.5,
+        clip_while_choosing: bool = False,
         start: Literal["drop", "zeros"] = "drop",
         initial: Literal["measured", "zeros"] = "measured",
         max_pool: int = 3000,
@@ -124,8 +125,11 @@ class Narx(Family):
         )
 
     def _check_structure(self) -> Structure:
-        """The model without its output clip, for the checks that choose it (see :meth:`_check_band`)."""
+        """The model without its output clip, for the checks that choose it (see :meth:`_check_band`);
+        with ``clip_while_choosing`` the clipped model itself."""
         st = self._structure()
+        if self.params.clip_while_choosing:
+            return st
         st.clip_lo = np.full(self.n_outputs_, -np.inf)
         st.clip_hi = np.full(self.n_outputs_, np.inf)
         return st
@@ -139,9 +143,12 @@ class Narx(Family):
         ``bounds``: the divergence band. With them: the output clip, widened where it is tighter than the
         training range +- half its width, within the divergence band. The clip is for inputs the training
         data never showed; a model that needs it on its own training or validation inputs is broken
-        there, and clipped it would pass every divergence check unnoticed."""
+        there, and clipped it would pass every divergence check unnoticed. With ``clip_while_choosing``
+        the clip is part of the model: only the divergence band."""
         lo, hi = self._bounds
-        if not (np.isfinite(self.clip_lo_).any() or np.isfinite(self.clip_hi_).any()):
+        if self.params.clip_while_choosing or not (
+            np.isfinite(self.clip_lo_).any() or np.isfinite(self.clip_hi_).any()
+        ):
             return lo, hi
         plo, phi = self._plausible
         return np.maximum(lo, np.minimum(self.clip_lo_, plo)), np.minimum(hi, np.maximum(self.clip_hi_, phi))
@@ -211,7 +218,7 @@ class Narx(Family):
                 data,
                 self.n_outputs_,
                 self.warmup,
-                self._unclipped,
+                (self.clip_lo_, self.clip_hi_) if p.clip_while_choosing else self._unclipped,
                 self._check_band(),
                 p,
                 progress,

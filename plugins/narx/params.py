@@ -148,6 +148,12 @@ class NarxFamilyParams(FamilyParams):
         "within plausible outputs instead of diverging); {output: [L, U]} gives bounds in the data's units (null: "
         "that side unbounded); null: no clipping",
     )
+    clip_while_choosing: bool = Field(
+        False,
+        description="choose terms and weights on the clipped free run, the clip being part of the model (thesis "
+        "6.3.2, eq. 6.25 used in estimation). Default false: the clip only guards inputs the data never showed, "
+        "and a model that needs it on its own training or validation data counts as diverged",
+    )
     start: Literal["drop", "zeros"] = Field(
         "drop",
         description="training patterns at a recording's start (thesis 3.1.1): drop those whose regressors reach "
