@@ -391,47 +391,23 @@ def inspect(
     import yaml
 
     from . import store
+    from .inspection import FACTS, PROVENANCE, describe
     from .paths import check_outputs
     from .usefulness import assess, summary_line
 
     check_outputs([(json_path, "json", "--json")], {"model": model_path}, force)
     model = store.load(model_path)
-    pre = model.preprocessor
-    summary: dict[str, Any] = {
-        "file": str(model_path),
-        "name": model.spec.get("name"),
-        "family": model.family.name,
-        "cost": model.spec.get("cost"),
-        "inputs": pre.input_names,
-        "outputs": pre.output_names,
-        "delay_lines": pre.delay_lines,
-        "delay_form": pre.delay_form,
-        "scaling": pre.scaling,
-        "sampling_time": pre.sampling_time,
-        "tune_in_samples": model.warmup,
-        "model": model.family.summary(),
-        "metrics": model.metrics,
-        "provenance": model.provenance,
-    }
+    summary = describe(model, model_path)
     out.print(f"[bold]{model_path}[/]  family [bold]{model.family.name}[/]  ({model.spec.get('name')})")
     facts = Table(show_header=False, box=None)
     facts.add_column(style="dim")
     facts.add_column()
-    for key in (
-        "cost",
-        "inputs",
-        "outputs",
-        "delay_lines",
-        "delay_form",
-        "scaling",
-        "sampling_time",
-        "tune_in_samples",
-    ):
+    for key in FACTS:
         facts.add_row(key, escape(str(summary[key])))
     for key, value in summary["model"].items():
         facts.add_row(key, escape(str(value)))
     prov = model.provenance
-    for key in ("dynmodel_version", "created", "seed", "training_data_sha256", "spec_file"):
+    for key in PROVENANCE:
         if key in prov:
             facts.add_row(key, escape(str(prov[key])))
     out.print(facts)
