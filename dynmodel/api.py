@@ -26,6 +26,7 @@ from .columns import is_pandas, is_recording_list, recordings, select
 from .data.dataset import SOURCE_KEYS, LoadedSource, load_dataset
 from .errors import DataError, ParameterError, SpecError
 from .family import Family, Progress, no_progress
+from .metrics import COSTS
 from .model import FittedModel
 from .spec import DataCommon, EvaluationSpec, parse_yaml, validate_spec, validation_summary
 
@@ -135,7 +136,7 @@ def fit_arrays(
         )
     if cost is None:  # as a spec without cost: the family's own default
         cost = getattr(family, "default_cost", "mse1")
-    if cost not in ("mse1", "mse_inf"):
+    if cost not in COSTS:
         raise ParameterError(f"unknown cost '{cost}'", "fit", "use cost='mse1' (one-step) or cost='mse_inf' (free run)")
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
         raise ParameterError(f"seed={seed!r} is not an integer >= 0", "fit", "pass e.g. seed=0")

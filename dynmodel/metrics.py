@@ -25,6 +25,9 @@ DEFAULT_METRICS: tuple[MetricName, ...] = ("nmse", "max")
 HIGHER_IS_BETTER: tuple[MetricName, ...] = ("fit",)
 #: column headings of tables
 METRIC_LABELS: dict[str, str] = {"nmse": "NMSE %", "max": "MAX", "rmse": "RMSE", "fit": "fit %"}
+#: the costs a family is fitted with: mse1, the one-step error; mse_inf, the free-run error (thesis 5.1)
+CostName = Literal["mse1", "mse_inf"]
+COSTS: tuple[CostName, ...] = get_args(CostName)
 
 
 def nmse(y: np.ndarray, yhat: np.ndarray) -> np.ndarray:

@@ -35,7 +35,6 @@ from .metrics import DEFAULT_METRICS, MetricName
 
 SPLITS = ("train", "validation", "test")
 SplitName = Literal["train", "validation", "test"]
-COSTS = ("mse1", "mse_inf")
 
 
 class StrictModel(BaseModel):

@@ -42,6 +42,7 @@ from pydantic import BaseModel
 
 from .errors import DynmodelError
 from .family import Family, NotFittedError, Simulation, field_doc, signature_default
+from .metrics import COSTS
 
 # ---------------------------------------------------------------------------- the generated system
 
@@ -226,7 +227,7 @@ def _declaration(case: FamilyCase) -> None:
     require(isinstance(cls.name, str) and cls.name, "a family sets its id in the class attribute `name`")
     require(isinstance(cls.description, str) and cls.description, "a family describes itself in `description`")
     require(isinstance(cls.stochastic, bool), "`stochastic` is True or False")
-    require(cls.default_cost in ("mse1", "mse_inf"), "`default_cost` is 'mse1' or 'mse_inf'")
+    require(cls.default_cost in COSTS, f"`default_cost` is one of {COSTS}")
     require(
         isinstance(cls.Params, type) and issubclass(cls.Params, BaseModel),
         "`Params` is a pydantic model (subclass dynmodel.family.FamilyParams)",
