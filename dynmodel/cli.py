@@ -492,6 +492,7 @@ def reliability_check(
     from .errors import SpecError
     from .progress import Reporter
     from .reliability import Settings, check, check_model
+    from .spec import validation_summary
 
     if (model_path is None) == (system is None):
         raise DynmodelError(
@@ -522,11 +523,10 @@ def reliability_check(
             try:
                 target = cls(**values)
             except ValueError as exc:  # pydantic's ValidationError is a ValueError
-                errors: list[dict[str, Any]] = getattr(exc, "errors", lambda: [])()
-                loc = ".".join(str(p) for p in errors[0]["loc"]) if errors else ""
-                detail = f"{loc + ': ' if loc else ''}{errors[0]['msg']}" if errors else str(exc).splitlines()[-1]
                 raise SpecError(
-                    f"invalid parameter ({detail})", "--param", f"'{system}' takes {', '.join(cls.Params.model_fields)}"
+                    f"invalid parameter ({validation_summary(exc)})",
+                    "--param",
+                    f"'{system}' takes {', '.join(cls.Params.model_fields)}",
                 ) from None
             report = check(target, settings, progress)
             source = {"test_system": system, "params": target.params.model_dump(mode="json")}

@@ -356,7 +356,7 @@ def test_cli_extra_sine_and_model_file(cli, tmp_path):
             "unknown test system 'lorenz'",
         ),
         (("--system", "duffing", "--param", "damping"), "is not key=value"),
-        (("--system", "duffing", "--param", "dampng=0.1"), "invalid parameter"),
+        (("--system", "duffing", "--param", "dampng=0.1"), "invalid parameter (unknown key 'dampng')"),
         (("--system", "duffing", "--sine", "27"), "AMPLITUDE:OMEGA"),
         (("missing.h5",), "model file not found"),
     ],
