@@ -57,9 +57,9 @@ def describe_level(level: LevelResult, names: list[str]) -> str:
                 f"fixed point {_fmt_vec(a.points[0])}" + (f" ({a.replicas} replicas)" if level.responses > 1 else "")
             )
         elif a.kind == "cycle":
-            pts = " -> ".join(_fmt_vec(p) for p in a.points[:4]) + (" -> ..." if len(a.points) > 4 else "")
+            path = " -> ".join(_fmt_vec(p) for p in a.points[:4]) + (" -> ..." if len(a.points) > 4 else "")
             parts.append(
-                f"{a.period}-cycle {pts} in {a.phases} phase{'s' if a.phases > 1 else ''} ({a.replicas} replicas)"
+                f"{a.period}-cycle {path} in {a.phases} phase{'s' if a.phases > 1 else ''} ({a.replicas} replicas)"
             )
         else:
             lam = "" if a.lyapunov is None or not np.isfinite(a.lyapunov) else f", largest CLE {a.lyapunov:.3g}/step"
