@@ -289,6 +289,7 @@ def run_specs(
     wait_running: bool = False,
     max_retries: int = 2,
     poll: float = 0.2,
+    point: Callable[[Variant, bool], PointResult] | None = None,
 ) -> Iterator[PointResult]:
     """Fit every variant on ``executor`` and yield a :class:`PointResult` as each one finishes.
 
@@ -305,6 +306,9 @@ def run_specs(
       lost: each was yielded when it finished.
     - ``max_retries``: resubmissions of a point whose worker process died, before it is recorded as
       an error (local process pools; Dask applies its own ``allowed-failures``).
+    - ``point``: the function a worker runs, ``point(variant, keep_model) -> PointResult`` (default
+      :func:`fit_point`); a module-level function, so that it pickles (a search passes its own, with a
+      :class:`Variant` subclass carrying what it needs, see :mod:`dynmodel.search.worker`).
     """
     from .executors import describe, make_executor, slots
 
@@ -378,7 +382,7 @@ def run_specs(
                     if item is None:
                         break
                     try:
-                        future = executor.submit(fit_point, item[0], keep_models)
+                        future = executor.submit(point or fit_point, item[0], keep_models)
                     except BrokenProcessPool:
                         retry.appendleft(item)
                         if inflight:

@@ -211,3 +211,10 @@ class AnnealedRnn(EchoStateNetwork):
         from .extensions import extensions
 
         return extensions(cause, ctx)
+
+    # ------------------------------------------------------------------ family: auto (docs/plugins.md)
+    @classmethod
+    def search_space(cls, ctx, around=None):
+        from .search_space import search_space
+
+        return search_space(ctx, around)
