@@ -129,11 +129,13 @@ def _fmt(v: Any, digits: int = 4) -> str:
 
 def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
     table = Table(title=title, title_justify="left")
-    table.add_column("split")
+    table.add_column("split", min_width=max((len(k) for k in metrics), default=5))
     table.add_column("samples", justify="right")
     shown = [k for k in ("nmse", "max", "rmse", "fit") if k in ("nmse", "max") or any(k in m for m in metrics.values())]
+    units = {m.get("rmse_units") for m in metrics.values()}
+    rmse = f"RMSE ({units.pop()})" if len(units) == 1 and None not in units else "RMSE"
     for k in shown:
-        table.add_column({"nmse": "NMSE %", "max": "MAX", "rmse": "RMSE", "fit": "fit %"}[k], justify="right")
+        table.add_column({"nmse": "NMSE %", "max": "MAX", "rmse": rmse, "fit": "fit %"}[k], justify="right")
     has_one = any("nmse_1" in m for m in metrics.values())
     if has_one:
         table.add_column("NMSE one-step %", justify="right")
@@ -209,7 +211,7 @@ def fit(
         notes = assess(model, ds, runs)
         store.save(model, target)
     elapsed = time.perf_counter() - t0
-    recs = ", ".join(dict.fromkeys(r.name.split(":")[-1] for r in ds.recordings))
+    recs = ", ".join(ds.source_names())
     family = model.family.name if model.search is None else f"auto -> {model.family.name}"
     cost = model.spec.get("cost") or s.cost
     out.print(f"[bold]{s.name}[/]: {family} fitted with cost {cost} on {recs} in {elapsed:.1f} s")
@@ -280,7 +282,7 @@ def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
     from .plots import measured_vs_simulated
 
     # the recording holding the test split (else the first), whole, with the splits shaded
-    rec = next((r for r, _, _ in ds.ranges.get("test", [])), 0)
+    rec = next((r for s in ds.test_splits() for r, _, _ in ds.ranges[s]), 0)
     r = ds.recordings[rec]
     t = np.arange(r.n) * ds.sampling_time
     spans = [
@@ -290,7 +292,10 @@ def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
         if rr == rec
     ]
     scored = [
-        a for split in ("test", "validation", "train") for rr, a, _ in ds.scored(split, model.warmup) if rr == rec
+        a
+        for split in (*ds.test_splits(), "validation", "train")
+        for rr, a, _ in ds.scored(split, model.warmup)
+        if rr == rec
     ]
     start = scored[0] if scored else 0
     measured_vs_simulated(
@@ -895,6 +900,7 @@ def plugins() -> None:
     for group, loaded, title in [
         (registry.FAMILIES, registry.families(), "model families"),
         (registry.SOURCES, registry.sources(), "data generators"),
+        (registry.SOURCES, registry.benchmarks(), "benchmark sources (data: {benchmark: NAME, root: DIR})"),
         (registry.SYSTEMS, registry.systems(), "test systems for reliability-check --system"),
         (registry.DETECTORS, registry.detectors(), "detectors of dynmodel diagnose"),
     ]:

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__, registry
+from . import __version__, protocol, registry
 from .data import Preprocessor, load_dataset, training_data
 from .data.dataset import Dataset
 from .errors import DynmodelError
@@ -69,6 +69,7 @@ def check_plan(spec, ds: Dataset):
     except ValueError as exc:
         raise DynmodelError(str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params") from None
     check_warmup(ds, family.warmup, spec.source)
+    protocol.check_warmup(family, ds, spec.source)  # before a long fit, where the parameters fix it
     return family
 
 
@@ -100,6 +101,7 @@ def _fit_family(family: Family, spec, ds: Dataset, progress: Progress) -> tuple[
         raise DynmodelError(
             str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
         ) from exc
+    protocol.check_warmup(family, ds, spec.source)
     train_u, lengths = ds.concat_inputs("train")
     model = FittedModel(
         family,
@@ -112,7 +114,8 @@ def _fit_family(family: Family, spec, ds: Dataset, progress: Progress) -> tuple[
         train_output=ds.concat_outputs("train"),
     )
     progress("evaluate", None, "free runs over every recording")
-    model.metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
+    metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
+    model.metrics = protocol.report(metrics, ds, protocol.units_of(spec, ds))
     return model, runs
 
 

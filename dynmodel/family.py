@@ -223,6 +223,9 @@ class Family(ABC):
     #: the cost a spec without ``cost:`` fits with ('mse1' or 'mse_inf'): what the family's estimation
     #: does best for a model that is evaluated in free run
     default_cost: ClassVar[str] = "mse1"
+    #: what to try when the model needs more measured outputs (``warmup``) than a protocol's
+    #: initialization window allows; ``{window}`` is replaced by the window's length
+    warmup_hint: ClassVar[str] = "configure the model to start from at most {window} measured outputs"
     #: does ``fit`` draw random numbers (network weights, annealing moves)? Then a result depends on the
     #: seed, and ``dynmodel diagnose`` repeats fits over seeds to measure a gain's uncertainty
     stochastic: ClassVar[bool] = True
@@ -333,7 +336,9 @@ class Family(ABC):
     # -- prediction ----------------------------------------------------------------------
     @property
     def warmup(self) -> int:
-        """Samples at the start of a run that use measured outputs (tune-in); 0 for pure simulators."""
+        """Samples at the start of a run that use measured outputs (tune-in); 0 for pure simulators.
+        Known before ``fit`` where the parameters fix it, so that a protocol's window is checked
+        before a long fit (and again after it)."""
         return 0
 
     @abstractmethod

@@ -54,7 +54,7 @@ def measured_vs_simulated(
         lim = _limits(y[:, k]) if np.isfinite(y[:, k]).any() else _limits(yhat[:, k])
         for label, a, b in spans or []:
             for ax in (full, err):
-                ax.axvspan(a, b, color=_SPLIT_COLORS.get(label, "#eeeeee"), lw=0)
+                ax.axvspan(a, b, color=_SPLIT_COLORS.get(label.split(":")[0], "#eeeeee"), lw=0)
             full.text(a, 1.0, f" {label}", transform=full.get_xaxis_transform(), va="top", fontsize=8, color="#555")
         if tune_in:
             for ax in (full, err):

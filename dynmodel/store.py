@@ -6,7 +6,8 @@ Layout (``format_version`` 1)::
     /spec             string dataset: the fully resolved spec as JSON
     /params/          family arrays as datasets; family attributes as attrs
     /preprocessing/   input/output offsets and scales, divergence bounds; names, delay lines as attrs
-    /eval/            one group per split with metric attrs; attr "metrics_json" holds everything
+    /eval/            one group per split with metric attrs (group test_<name> for the metrics key test:<name>,
+                      its attr "split" holds the key); attr "metrics_json" holds everything
     /provenance       attrs: dynmodel version, seed, sha256 of the training data, library versions
     /data/            training inputs and outputs (for reliability checks), gzip-compressed
     /search           (family: auto only) string dataset: the search record as JSON (docs/auto.md)
@@ -79,6 +80,11 @@ def _json_default(o: Any):
     if isinstance(o, np.generic):
         return o.item()
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def eval_group(split: str) -> str:
+    """The /eval group of a metrics key: ``test:<name>`` -> ``test_<name>`` (no ':' in HDF5 names)."""
+    return split.replace(":", "_")
 
 
 #: a temporary file of another host (or of an unknown writer) counts as stale after this many seconds
@@ -176,8 +182,8 @@ def save(model: FittedModel | Family, path: str | Path) -> Path:
             eg = f.create_group("eval")
             eg.attrs["metrics_json"] = json.dumps(model.metrics, default=_json_default)
             for split, values in model.metrics.items():
-                sg = eg.create_group(split)
-                _write_attrs(sg, {k: v for k, v in values.items() if k != "per_output"})
+                sg = eg.create_group(eval_group(split))
+                _write_attrs(sg, {"split": split, **{k: v for k, v in values.items() if k != "per_output"}})
             if model.search is not None:  # family: auto: every candidate, its metrics and verdict (docs/auto.md)
                 f.create_dataset("search", data=json.dumps(model.search, default=_json_default))
             prov = f.create_group("provenance")

@@ -25,7 +25,8 @@ from dynmodel.extensions import (
 )
 from dynmodel.spec import spec_model, validate_spec
 from dynmodel_plugins.esn.params import EsnParams
-from dynmodel_plugins.narx.embedding import DEFAULT_INPUT_LAGS, DEFAULT_OUTPUT_LAGS
+from dynmodel_plugins.narx.embedding import default_lag_table
+from dynmodel_plugins.narx.extensions import expand
 
 CAUSES = sorted(set(registry.detectors()) | {"inadequate-structure"})
 EVIDENCE = {
@@ -61,14 +62,15 @@ def test_every_proposal_is_a_valid_spec_without_a_diagnosis(family, tmp_path):
 
 
 def test_narx_offers_a_higher_degree_and_output_terms_for_an_output_nonlinearity(tmp_path):
-    ctx = _context(_raw("narx"), tmp_path)
+    ctx = _context(_raw("narx", {"degree": 2}), tmp_path)
     props = family_extensions("output-nonlinearity", ctx)
     degrees = [p.patch["model"]["params"].get("degree") for p in props if "model" in p.patch]
     assert 3 in degrees and 4 in degrees
     terms = next(p for p in props if "output-dependent" in p.summary)
     # the default lag table, asked of the family, written out with one more output lag
     lags = terms.patch["model"]["params"]["lags"]
-    assert lags["u"] == list(DEFAULT_INPUT_LAGS) and lags["y"] == [*DEFAULT_OUTPUT_LAGS, max(DEFAULT_OUTPUT_LAGS) + 1]
+    default = default_lag_table(["u"], ["y"], 2)
+    assert expand(lags["u"]) == default["u"] and expand(lags["y"]) == [*default["y"], max(default["y"]) + 1]
     # a polynomial cannot follow a direction-dependent friction force: esn offers to replace it
     switch = [p for p in family_extensions("direction-dependence", ctx) if p.patch.get("model", {}).get("family")]
     assert switch and switch[0].patch["model"]["family"] == "esn"
@@ -103,7 +105,11 @@ def test_new_channels_enter_through_the_family(tmp_path):
     patch = with_inputs(narx, delay_lines=[40], derived=[{"time": "linear"}], history=2)
     assert patch["data"] == {"delay_lines": [40], "derived_inputs": [{"time": "linear"}]}
     lags = patch["model"]["params"]["lags"]
-    assert lags["u@40"] == [0, 1, 2] and lags["time_linear"] == [0, 1, 2] and lags["u"] == list(DEFAULT_INPUT_LAGS)
+    assert (
+        lags["u@40"] == [0, 1, 2]
+        and lags["time_linear"] == [0, 1, 2]
+        and expand(lags["u"]) == default_lag_table(["u"], ["y"], 3)["u"]
+    )
     esn = _context(_raw("esn"), tmp_path)
     assert with_inputs(esn, delay_lines=[40], history=2) == {"data": {"delay_lines": [40]}}  # a network takes them
     diff = _context({**_raw("narx"), "data": {**_raw("narx")["data"], "delay_form": "difference"}}, tmp_path)
@@ -141,7 +147,7 @@ def test_a_third_party_family_gets_model_side_proposals(monkeypatch, tmp_path):
     spec_model.cache_clear()
     try:
         case = HIDDEN["output-nonlinearity"](7)
-        case.model = {"family": "thirdparty-poly", "params": {"lags": {"u": [0, 1, 2], "y": [1, 2]}}}
+        case.model = {"family": "thirdparty-poly", "params": {"degree": 2, "lags": {"u": [0, 1, 2], "y": [1, 2]}}}
         result = diagnose(case.spec(tmp_path), "<test>", tmp_path, Settings(rounds=1))
     finally:
         monkeypatch.undo()

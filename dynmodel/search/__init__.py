@@ -69,7 +69,7 @@ def fit_auto(spec, ds: Dataset, progress: Progress = no_progress):
     """Search, then return ``(model, runs)`` like :func:`dynmodel.engine.fit_dataset`: the winner refitted or
     kept, evaluated on every split of ``ds`` with the spec's evaluation settings, ``model.search`` the record.
     Ctrl-C keeps the best model so far (the record says it was interrupted)."""
-    from .. import engine
+    from .. import engine, protocol
     from ..model import evaluate
     from .run import Search
 
@@ -112,7 +112,9 @@ def fit_auto(spec, ds: Dataset, progress: Progress = no_progress):
     model.train_output = ds.concat_outputs("train")
     model.provenance = {**engine._provenance(spec, ds), "search_seconds": record.get("seconds")}
     progress("evaluate", None, "free runs of the chosen model over every recording")
-    model.metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
+    protocol.check_warmup(model.family, ds, spec.source)
+    metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
+    model.metrics = protocol.report(metrics, ds, protocol.units_of(spec, ds))
     model.search = record
     return model, runs
 

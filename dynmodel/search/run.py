@@ -138,10 +138,9 @@ def _in_worker() -> bool:
 def context(spec, ds: Dataset, params: AutoParams, written_cost: str | None) -> tuple[SearchContext, str, str | None]:
     """The search context, the layout kind ('holdout' or 'folds') and why the validation is short."""
     n_train, n_val = ds.n_scored("train"), ds.n_scored("validation") if ds.ranges.get("validation") else 0
-    windows = dict(getattr(ds, "windows", {}) or {})
-    score_all = set(getattr(ds, "score_all", set()) or set())
-    held = [s for s in ds.splits() if s != "train"]
-    limits = [0 if s in score_all else windows[s] for s in held if s in score_all or s in windows]
+    from ..protocol import allowed_warmup
+
+    limits = list(allowed_warmup(ds).values())
     max_warmup = min(limits) if limits else None
     excursion = max((e["excess"] for e in ds.input_excursions()), default=0.0)
     short = None

@@ -85,12 +85,13 @@ def _score(metrics: dict[str, Any]) -> float | None:
 
 
 def _fit(task: Task, spec, ds, keep_model: bool, result: TaskResult) -> None:
-    from .. import engine
+    from .. import engine, protocol
     from ..usefulness import input_dependence
     from .checks import band_checks, complexity
 
     v = view(ds, task.layout)
     model, runs = engine.fit_dataset(spec, v)
+    protocol.check_warmup(model.family, ds, spec.source)  # the test sets' windows too (the view has none)
     result.metrics = model.metrics
     result.score = _score(model.metrics)
     bad = model.unstable

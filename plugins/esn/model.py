@@ -53,6 +53,8 @@ class EchoStateNetwork(Family):
             "fewer elements, or inputs within the training range"
         )
 
+    warmup_hint = "set tune_in to at most {window}, or use mode: internal (no measured output is fed back)"
+
     params: EsnParams
 
     def __init__(

@@ -18,7 +18,10 @@ from typing import Any
 
 from dynmodel.extensions import Extension, ExtensionContext, merge_patches, params_patch, switch_family
 
-from .embedding import DEFAULT_INPUT_LAGS, DEFAULT_OUTPUT_LAGS, pool_size
+from .embedding import default_lag_table, pool_size
+
+#: output lags of a proposal that feeds the past output back into a model without feedback
+FEEDBACK_LAGS = (1, 2)
 
 NAME = "narx"
 MAX_ORDER = 40  # at most this many lags per column from a lag-order proposal
@@ -46,9 +49,9 @@ def lag_table(ctx: ExtensionContext) -> dict[str, list[int]]:
         for r in emb.regressors:
             fitted.setdefault(r.name, []).append(r.lag)
         return fitted
-    table = {name: list(DEFAULT_INPUT_LAGS) for name in ctx.model_input_names}
-    table.update({name: list(DEFAULT_OUTPUT_LAGS) for name in ctx.output_names})
-    return table
+    return default_lag_table(
+        list(ctx.model_input_names), list(ctx.output_names), _degree(ctx), bool(ctx.params.get("constant", True))
+    )
 
 
 def _degree(ctx: ExtensionContext) -> int:
@@ -183,10 +186,10 @@ def _output_feedback(ctx: ExtensionContext, why: str) -> list[Extension]:
     if any(table.get(y) for y in ctx.output_names):
         return []
     for y in ctx.output_names:
-        table[y] = list(DEFAULT_OUTPUT_LAGS)
+        table[y] = list(FEEDBACK_LAGS)
     if not _fits(ctx, table):
         return []
-    lags = list(DEFAULT_OUTPUT_LAGS)
+    lags = list(FEEDBACK_LAGS)
     return [Extension(f"feed the past output back (output lags {lags}): {why}", lags_patch(table))]
 
 

@@ -21,7 +21,7 @@ from dynmodel.family import Family, Progress, Simulation, constructor_arguments,
 
 from . import orders
 from . import pool as pool_mod
-from .embedding import Embedding, Regressor, build_embedding, exponents_of, parse_term, term_label
+from .embedding import DEFAULT_MAX_LAG, Embedding, Regressor, build_embedding, exponents_of, parse_term, term_label
 from .estimation import (
     FreeRunProblem,
     Scored,
@@ -59,6 +59,7 @@ class Narx(Family):
         "use cost: mse_inf (free-running estimation), bounds: 0.1 (clip the output, eq. 6.25), ridge: auto, "
         "or a lower degree"
     )
+    warmup_hint = "use lags of at most {window} samples, or initial: zeros (the free run starts from rest)"
 
     params: NarxFamilyParams
 
@@ -90,11 +91,27 @@ class Narx(Family):
     # ------------------------------------------------------------------ structure
     @property
     def warmup(self) -> int:
-        """``initial: measured``: the first L samples (L = the largest lag) are measured."""
+        """``initial: measured``: the first L samples (L = the largest lag) are measured (before
+        ``fit``: the largest lag the parameters name)."""
         if self.params.initial == "zeros":
             return 0
         emb = getattr(self, "embedding_", None)
-        return emb.max_lag if emb is not None else 0
+        return emb.max_lag if emb is not None else self._planned_max_lag()
+
+    def _planned_max_lag(self) -> int:
+        p = self.params
+        table = p.lag_table()
+        lags = [lag for values in table.values() for lag in values] if table is not None else []
+        if table is None and p.terms is None:
+            lags.append(DEFAULT_MAX_LAG)  # lags chosen on the data, at most this long
+        if p.terms is not None:
+            terms = p.terms if isinstance(p.terms, list) else [t for ts in p.terms.values() for t in ts]
+            for text in terms:
+                try:
+                    lags += [lag for _, lag, _ in parse_term(text)]
+                except ValueError:  # reported by fit, with its context
+                    pass
+        return max(lags, default=0)
 
     def _structure(self) -> Structure:
         return make_structure(
