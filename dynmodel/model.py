@@ -209,6 +209,13 @@ def evaluate(
                 unstable = {"recording": ds.recordings[rec].name, "sample": int(k), "time": float(k * st)}
                 break
         y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
+        if not unstable and rows and not np.isfinite(y).all():  # a test set whose outputs are unknown (NaN)
+            entry.update({m: None for m in metrics})
+            entry["unscored"] = "the measured outputs are unknown (NaN)"
+            if one is not None:
+                entry["nmse_1"] = None
+            out[split] = entry
+            continue
         if unstable:
             entry.update({m: None for m in metrics})
             entry["unstable_from"] = unstable

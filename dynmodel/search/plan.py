@@ -11,7 +11,7 @@ So the candidates, the stages and the choice depend on the spec, its seed and th
 one worker or twenty, on a fast machine or a loaded one. Wall time follows the planned work: more workers
 finish sooner, one takes about twice as long as the plan. Two things stop a search early, and the result
 then says so: Ctrl-C (the best model so far is kept) and a safety limit at :data:`HARD_LIMIT` times the
-budget in wall-clock time (for estimates far off on an unusual machine or data); only these depend on time.
+budget (plus :data:`HARD_SLACK` seconds) in wall-clock time (for estimates far off on an unusual machine or data); only these depend on time.
 """
 
 from __future__ import annotations
@@ -24,14 +24,15 @@ from typing import Any
 REFERENCE_WORKERS = 2
 #: cumulative shares of the allowance up to the end of each stage
 SHARES = {
-    "screen": 0.40,
-    "grow": 0.55,
-    "seeds": 0.65,
+    "screen": 0.45,
+    "grow": 0.60,
     "full": 0.88,
     "moves": 1.00,
 }
-#: the search stops (keeping the best so far, and saying so) after this many times the budget of wall time
+#: the search stops (keeping the best so far, and saying so) after this many times the budget of wall time, plus
+#: HARD_SLACK seconds (starting worker processes, compiling kernels on a first run)
 HARD_LIMIT = 3.0
+HARD_SLACK = 120.0
 #: planned seconds of a task besides the fit itself (data views, the checks' free runs, transfers)
 TASK_OVERHEAD = 0.05
 

@@ -6,9 +6,9 @@ Stages, each with members fixed before it starts (see :mod:`.plan` for the budge
    cheap screening variant, on the screening layout (the last :data:`SCREEN_SAMPLES` training samples;
    for short data the blocked cross-validation); the linear and mean references alongside;
 2. ``grow``: the neighbours of the best :data:`GROW_FROM` candidates (the hook with ``around``);
-3. ``seeds``: the other seeds of the random candidates among the best :data:`SURVIVORS`;
-4. ``full``: the survivors in their full variant on the final layout (all training samples, or the folds);
-5. ``moves``: ``dynmodel diagnose``'s detectors on the leader, and the extensions they propose (the
+3. ``full``: the best :data:`SURVIVORS` in their full variant on the final layout (all training samples, or
+   the folds), random ones with every seed (a screening fit that already was a final one is not repeated);
+4. ``moves``: ``dynmodel diagnose``'s detectors on the leader, and the extensions they propose (the
    residual says what is missing: extend, refit, keep what validates);
 
 then the choice (:mod:`.select`) on the final layout, and the winner's model: the fit already made on
@@ -36,7 +36,7 @@ from ..extensions import merge
 from ..family import Progress, no_progress
 from .checks import failed_split
 from .params import AutoParams, searchable_families
-from .plan import HARD_LIMIT, TASK_OVERHEAD, Budget, Group
+from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
 from .views import Layout, possible_folds
@@ -69,6 +69,14 @@ class Entry:
     results: dict[str, list[TaskResult]] = field(default_factory=dict)  # level -> fit results
     summaries: dict[str, Summary] = field(default_factory=dict)
     verdict: str = "not run"
+    #: the screening fits count as final fits (same variant, same layouts): a deterministic candidate needs
+    #: no refit, a random one only its other seeds
+    reuse_screen: bool = False
+
+    def results_at(self, level: str) -> list[TaskResult]:
+        if level == "final" and self.reuse_screen:
+            return self.results.get("screen", []) + self.results.get("final", [])
+        return self.results.get(level, [])
 
     @property
     def label(self) -> str:
@@ -260,11 +268,12 @@ class Search:
     def _stopping(self) -> bool:
         if self.cancel.is_set():
             return True
-        if time.monotonic() - self.started > HARD_LIMIT * self.budget.seconds:
+        limit = HARD_LIMIT * self.budget.seconds + HARD_SLACK
+        if time.monotonic() - self.started > limit:
             if self.interrupted is None:
                 self.interrupted = (
-                    f"stopped at the safety limit of {HARD_LIMIT:g} x the budget in wall time "
-                    f"({HARD_LIMIT * self.budget.seconds:.0f} s): the result depends on this machine's speed"
+                    f"stopped at the safety limit of {HARD_LIMIT:g} x the budget + {HARD_SLACK:g} s in wall time "
+                    f"({limit:.0f} s): the result depends on this machine's speed"
                 )
             return True
         return False
@@ -323,12 +332,15 @@ class Search:
             self.kept[r.key] = r.model
             r.model = None
         entry.summaries[level] = summarize(sorted(entry.results[level], key=lambda x: x.key))  # type: ignore[assignment]
-        if level == "screen" and self._screen_is_final(entry):
-            entry.summaries["final"] = entry.summaries["screen"]
+        complete = not entry.random or len(entry.summaries["screen" if level == "screen" else level].seeds) >= (
+            self.params.seeds
+        )
+        if entry.reuse_screen and (level == "final" or complete):
+            entry.summaries["final"] = summarize(sorted(entry.results_at("final"), key=lambda x: x.key))  # type: ignore[assignment]
 
-    def _screen_is_final(self, entry: Entry) -> bool:
-        """Is the screening fit of ``entry`` the final one (same variant, same layouts)?"""
-        same_variant = not entry.cand.screen and (entry.cand.screen_cost in (None, entry.cand.cost))
+    def _screen_is_final(self, cand: Candidate) -> bool:
+        """Are the screening fits of ``cand`` final ones (same variant, same layouts)?"""
+        same_variant = not cand.screen and (cand.screen_cost in (None, cand.cost))
         return same_variant and self.screen_layouts == self.final_layouts
 
     # ------------------------------------------------------------------ ranking
@@ -374,7 +386,7 @@ class Search:
     def _add(self, cand: Candidate, origin: str) -> Entry | None:
         if cand.key in self.entries:
             return None
-        entry = Entry(cand, origin)
+        entry = Entry(cand, origin, reuse_screen=self._screen_is_final(cand))
         self.entries[cand.key] = entry
         return entry
 
@@ -382,7 +394,7 @@ class Search:
         e = self.entries[key]
         s = e.summaries[level]
         fitted = None
-        results = sorted(e.results.get(level, []), key=lambda r: r.key)
+        results = sorted(e.results_at(level), key=lambda r: r.key)
         pick = next((r for r in results if r.seed == s.median_seed and r.key in self.kept), None)
         if pick is not None:
             try:
@@ -443,27 +455,16 @@ class Search:
             if "screen" not in e.summaries:
                 e.verdict = "not run (budget)"
 
-    def _stage_seeds(self, keys: list[str]) -> None:
-        groups = []
-        for k in keys:
-            e = self.entries[k]
-            if not e.random or self.params.seeds <= 1:
-                continue
-            have = set(e.summaries["screen"].seeds)
-            seeds = [s for s in self.seeds_of(e, self.params.seeds) if s not in have]
-            if seeds:
-                groups.append(self._group(e, "screen", seeds))
-        taken = self.budget.take("seeds", groups, minimum=0)
-        self._planned_tasks += sum(len(g.tasks) for g in taken)
-        self._run("seeds", [t for g in taken for t in g.tasks])
-
     def _stage_full(self, keys: list[str]) -> None:
         groups = []
         for k in keys:
             e = self.entries[k]
-            if "final" in e.summaries and self._screen_is_final(e):
-                continue
-            groups.append(self._group(e, "final", self.seeds_of(e, self.params.seeds)))
+            seeds = self.seeds_of(e, self.params.seeds)
+            if e.reuse_screen:  # only the seeds the screening did not fit
+                done = {int(r.seed or 0) for r in e.results.get("screen", [])}
+                seeds = [s for s in seeds if s not in done]
+            if seeds:
+                groups.append(self._group(e, "final", seeds))
         taken = self.budget.take("full", groups, minimum=1 if groups else 0)
         self._planned_tasks += sum(len(g.tasks) for g in taken)
         self._run("full", [t for g in taken for t in g.tasks])
@@ -478,6 +479,7 @@ class Search:
             leader = self.entries[ranked[0]]
             seed = leader.summaries["final"].median_seed or int(self.spec.seed)
             raw = self.raw_for(leader.cand, seed, False)
+            # the detectors refit the leader's spec (a held-out refit with more terms, a reference model)
             work = 3 * estimated_work(leader.cand, self.ctx) + 1e-4 * self.ctx.n_train
             diag = Group(
                 "diagnose", [self._task(f"diagnose|{round_}|{leader.cand.key}", raw, "diagnose", Layout("full"))], work
@@ -519,6 +521,9 @@ class Search:
         except (DynmodelError, ValueError):
             return None
         model = patched.get("model") or {}
+        allowed = self.params.families or list(searchable_families())
+        if model.get("family") not in allowed:  # a switch to a family the user left out (or not searchable)
+            return None
         data = {
             k: patched["data"][k] for k in patched.get("data", {}) if patched["data"].get(k) != self.base["data"].get(k)
         }
@@ -587,7 +592,7 @@ class Search:
             pick = next(
                 (
                     r
-                    for r in sorted(e.results["final"], key=lambda r: r.key)
+                    for r in sorted(e.results_at("final"), key=lambda r: r.key)
                     if r.seed == s.median_seed and r.key in self.kept
                 ),
                 None,
@@ -620,9 +625,6 @@ class Search:
             self._stage_screen()
             if not self.interrupted:
                 self._stage_grow()
-            surv = self.survivors() if not self.interrupted else []
-            if not self.interrupted:
-                self._stage_seeds(surv)
             surv = self.survivors() if not self.interrupted else []
             if not self.interrupted:
                 self._stage_full(surv)

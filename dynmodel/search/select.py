@@ -79,11 +79,12 @@ class Summary:
 
 
 def _median_seed(scores: dict[int, float]) -> tuple[float, int | None]:
-    """The (lower) median score over seeds and its seed (ties broken by the smaller seed)."""
+    """The median score over seeds and its seed (the upper median for an even count: never the better of two
+    draws; ties broken by the smaller seed)."""
     if not scores:
         return math.inf, None
     ordered = sorted(scores.items(), key=lambda kv: (kv[1], kv[0]))
-    seed, value = ordered[(len(ordered) - 1) // 2]
+    seed, value = ordered[len(ordered) // 2]
     return value, seed
 
 

@@ -15,7 +15,7 @@ from dynmodel.search.space import Candidate, Found, SearchContext
 NAME = "annealed-rnn"
 #: seconds per annealing step, training sample and element, and a fixed part
 _COST = 1.5e-8
-_FIXED = 0.3
+_FIXED = 0.1
 
 
 def _work(ctx: SearchContext, steps: int, size: int, external: bool = False) -> float:

@@ -18,7 +18,7 @@ from dynmodel.search.space import Candidate, Found, SearchContext
 NAME = "esn"
 #: seconds per training sample and element of a fit (streamed drive, FOS readout), and a fixed part
 _COST = 1.2e-7
-_FIXED = 0.3
+_FIXED = 0.1
 #: the shortest tune-in worth an external network
 _MIN_TUNE_IN = 5
 

@@ -28,7 +28,7 @@ from .embedding import pool_size
 
 NAME = "narx"
 #: seconds per training sample and pool monomial of a screening fit (FOS on a Gram matrix, free-run stop)
-_SCREEN_COST = 4e-7
+_SCREEN_COST = 1e-7
 #: seconds per training sample, term and free run of the free-running re-estimation
 _REFINE_COST = 2.5e-8
 
@@ -55,7 +55,7 @@ def _initial(ctx: SearchContext, L: int) -> dict[str, Any]:
 def _work(ctx: SearchContext, pool: int, terms: int) -> tuple[float, float]:
     """(full, screening) seconds of one fit on ctx.n_train samples."""
     n = max(ctx.n_train, 1)
-    screen = 0.5 + _SCREEN_COST * n * pool * (1 + n / 50000)
+    screen = 0.05 + _SCREEN_COST * n * pool * (1 + n / 50000)
     refine = _REFINE_COST * n * terms * terms * 40
     return screen + refine, screen
 
@@ -228,7 +228,7 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
                 params={**fixed, "selection": "free_run"},
                 summary=f"degree {degree}, lags up to {L}, terms selected on the free-running error",
                 cost="mse_inf",
-                work=3 * full,
+                work=max(2.0, k / 2) * full,  # every growth step re-estimates the weights on the free run
                 stochastic=False,
             )
         )
