@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import narx, write_csv, write_yaml
 from pydantic import Field
 
 import dynmodel
@@ -28,8 +29,6 @@ from dynmodel.search.select import Summary, choose
 from dynmodel.search.space import Candidate
 from dynmodel.search.views import Layout, possible_folds, view
 from dynmodel.spec import spec_model, validate_spec
-
-from conftest import narx, write_csv, write_yaml
 
 WINDOW = 20
 
