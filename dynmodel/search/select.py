@@ -1,7 +1,7 @@
 """How the search judges its candidates: scores over seeds and folds, and the choice that protects the user.
 
 A candidate's **score** at a level (screening, or the final layout) is its validation free-run NMSE (%):
-the mean over the folds of a cross-validation, then the **median over seeds** for a random family (a fit
+the folds of a cross-validation pooled as one validation split (:func:`pooled`), then the **median over seeds** for a random family (a fit
 that failed or diverged counts as infinitely bad, so one lucky draw cannot carry a configuration, and one
 unlucky one cannot sink it). The seed whose score is that median gives the model that is kept.
 
@@ -88,6 +88,24 @@ def _median_seed(scores: dict[int, float]) -> tuple[float, int | None]:
     return value, seed
 
 
+def pooled(results: list[Any]) -> float:
+    """One validation NMSE (%) of several folds: their squared errors summed and divided by the variance of
+    every fold's measured validation output taken together (mean over outputs), as if the folds were one
+    validation split. A fold of small output variance then weighs by its error, not by its own variance (per
+    fold NMSEs of a slow system can be huge on a quiet block). One result: its own score."""
+    if len(results) == 1:
+        return float(results[0].score)
+    moments = [r.moments for r in results]
+    if any(m is None for m in moments):
+        return float(np.mean([r.score for r in results]))
+    n = sum(m["n"] for m in moments)
+    sse = np.sum([m["sse"] for m in moments], axis=0)
+    mean = np.sum([m["sum"] for m in moments], axis=0) / n
+    var = np.sum([m["sumsq"] for m in moments], axis=0) / n - mean**2
+    var = np.maximum(var, np.finfo(float).tiny)
+    return float(np.mean(100.0 * sse / (n * var)))
+
+
 def summarize(results: list[Any]) -> Summary | None:
     """Aggregate the fit results of one candidate at one level (several seeds, several folds)."""
     fits = [r for r in results if r.kind == "fit"]
@@ -101,7 +119,7 @@ def summarize(results: list[Any]) -> Summary | None:
     for seed, rs in sorted(by_seed.items()):
         vals = [r.score for r in rs]
         usable = all(v is not None and math.isfinite(v) and r.status == "ok" for v, r in zip(vals, rs))
-        scores[seed] = float(np.mean(vals)) if usable else math.inf
+        scores[seed] = pooled(rs) if usable else math.inf
         ok_seeds[seed] = all(bool(r.checks.get("ok", False)) for r in rs) and usable
     score, median = _median_seed(scores)
     ok = sum(ok_seeds.values()) * 2 >= len(ok_seeds) and (median is None or ok_seeds.get(median, False))

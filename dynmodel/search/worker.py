@@ -49,7 +49,9 @@ class TaskResult(PointResult):
     when the view has none); None when the run diverged there or the fit failed. ``checks``: the band
     checks per split (:func:`.checks.band_checks`). ``dependence``: input dependence on the view's
     validation split. ``complexity``: the fitted model's size. ``proposals``: diagnose tasks' moves as
-    ``{"cause", "summary", "patch"}``. ``reference``: reference tasks' figures."""
+    ``{"cause", "summary", "patch"}``. ``reference``: reference tasks' figures.
+    ``moments``: sums over the view's validation samples that let folds be pooled into one score (``n``, per
+    output ``sse``, ``sum``, ``sumsq`` of the measured output)."""
 
     kind: str = "fit"
     layout: dict[str, Any] = field(default_factory=dict)
@@ -60,6 +62,7 @@ class TaskResult(PointResult):
     proposals: list[dict[str, Any]] = field(default_factory=list)
     reference: dict[str, Any] | None = None
     selection: dict[str, Any] | None = None
+    moments: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = super().to_json()
@@ -84,6 +87,27 @@ def _score(metrics: dict[str, Any]) -> float | None:
     return None if value is None else float(value)
 
 
+def validation_moments(model, ds, runs) -> dict[str, Any] | None:
+    """Sums over the scored validation samples (the training split when there is none): the count, and per
+    output the squared free-run error, the measured output's sum and sum of squares; None after a divergence."""
+    import numpy as np
+
+    split = "validation" if ds.ranges.get("validation") else "train"
+    rows = ds.scored(split, model.warmup)
+    if not rows:
+        return None
+    y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
+    yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])
+    if not np.isfinite(yhat).all():
+        return None
+    return {
+        "n": int(len(y)),
+        "sse": ((y - yhat) ** 2).sum(axis=0).tolist(),
+        "sum": y.sum(axis=0).tolist(),
+        "sumsq": (y**2).sum(axis=0).tolist(),
+    }
+
+
 def _fit(task: Task, spec, ds, keep_model: bool, result: TaskResult) -> None:
     from .. import engine, protocol
     from ..usefulness import input_dependence
@@ -98,6 +122,7 @@ def _fit(task: Task, spec, ds, keep_model: bool, result: TaskResult) -> None:
     result.status = "diverged" if bad else "ok"
     if bad:
         result.message = f"the free run diverged on the {bad['split']} split at sample {bad['sample']}"
+    result.moments = None if bad else validation_moments(model, v, runs)
     result.checks = band_checks(model, ds)
     try:
         result.dependence = None if bad else input_dependence(model, v, runs=runs)
