@@ -65,7 +65,13 @@ def test_masked_causes_over_eight_seeds(cause, tmp_path):
         folder.mkdir()
         case, result, hits = _masked_outcome(cause, seed, folder)
         found += bool(hits) and _evidence_matches(cause, case, hits[0])
-        gains.append(result.gain["relative_reduction"])
+        g = result.gain
+        if g.get("baseline_diverged_on_test") and not g.get("extended_diverged_on_test"):
+            # the default network's free run leaves the divergence band on the test input (every family's
+            # run is held to it since issue 15) and the extended model does not: the whole error is removed
+            gains.append(1.0)
+        else:
+            gains.append(g["relative_reduction"])
     assert found >= 7 and min(gains) >= 0.3, (found, gains)
 
 

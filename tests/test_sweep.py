@@ -299,9 +299,9 @@ def test_results_failing_and_diverging_points_are_recorded(tmp_path):
     assert r.exit_code == 0, r.stderr
     pts = results(out)
     assert [pts[k]["status"] for k in sorted(pts)] == ["ok", "diverged", "error", "ok"]
-    assert "only 0 training patterns" in pts["p0002"]["message"] and "model (narx)" in pts["p0002"]["message"]
+    assert "tunes in on the first" in pts["p0002"]["message"] and "model.params" in pts["p0002"]["message"]
     assert "diverged on the train split" in pts["p0001"]["message"] and pts["p0001"]["metrics"]["train"]["nmse"] is None
-    assert "p0002: " in r.stdout and "only 0 training patterns" in r.stdout
+    assert "p0002: " in r.stdout and "tunes in on the first" in r.stdout
     # the table ranks stable points by validation NMSE, then the diverged one, then the error
     csv_rows = (out / "results.csv").read_text().splitlines()
     header = csv_rows[0].split(",")
