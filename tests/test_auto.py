@@ -84,6 +84,28 @@ def test_a_spec_without_a_model_section_searches():
     assert spec.model.params.budget == 300 and spec.model.params.seeds == 3
 
 
+@pytest.mark.slow
+def test_a_spec_without_a_model_section_runs_the_default_search(tmp_path, cli):
+    """No model section at all: `dynmodel fit` searches every installed family with the default budget (300 s,
+    so on 400 samples every candidate is planned; about 10 s of fits) and saves the winner."""
+    u, y = narx(400, 11)
+    write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    raw = {"name": "no-model", "data": {"path": "train.csv", "input": ["u"], "output": ["y"]}, "seed": 0}
+    raw["data"]["split"] = {"train": 0.7, "validation": 0.3}
+    spec = write_yaml(tmp_path / "no-model.yaml", raw)
+    result = cli("fit", spec, "--workers", "1", "--json", tmp_path / "fit.json", "-q")
+    assert result.exit_code == 0, result.output
+    assert "auto -> " in result.output and "search:" in result.output
+    rec = json.loads((tmp_path / "fit.json").read_text())["search"]
+    assert rec["budget"]["seconds"] == 300 and rec["mode"] == "folds"  # 120 validation samples: cross-validated
+    measured = {c["family"] for c in rec["candidates"] if c["levels"]}
+    assert {"narx", "esn", "annealed-rnn"} <= measured
+    chosen = [c for c in rec["candidates"] if c["verdict"] == "chosen"]
+    assert len(chosen) == 1 and chosen[0]["validation_nmse"] < 0.5  # NMSE %, the linear references give ~0.5
+    model = dynmodel.load(tmp_path / "no-model.h5")
+    assert model.family.name == chosen[0]["family"] and model.search["winner"] == rec["winner"]
+
+
 def test_auto_params_are_checked_in_one_line():
     with pytest.raises(SpecError, match="family 'nope'"):
         validate_spec(
