@@ -15,7 +15,10 @@ def headline(record: dict[str, Any]) -> str:
     """``search: 23 candidates of narx, esn (cross-validated in 5 blocks), 41 s; chose ...``."""
     cands = [c for c in record["candidates"] if c.get("levels")]
     families = sorted({c["family"] for c in cands})
-    how = f"cross-validated in {record['folds']} blocks" if record.get("mode") == "folds" else "validation split"
+    how = {
+        "folds": f"cross-validated in {record.get('folds')} blocks",
+        "recordings": f"each of {record.get('folds')} recordings left out in turn",
+    }.get(record.get("mode"), "validation split")
     budget = record.get("budget") or {}
     text = (
         f"search: {len(cands)} candidates of {', '.join(families) or 'no family'} ({how}), "

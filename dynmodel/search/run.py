@@ -39,7 +39,7 @@ from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
-from .views import Layout, possible_folds
+from .views import Layout, possible_folds, possible_recording_folds
 from .worker import Task, TaskResult, run_task
 
 #: training samples of the screening layout (longer training splits are cut to their last samples)
@@ -144,7 +144,8 @@ def _in_worker() -> bool:
 
 
 def context(spec, ds: Dataset, params: AutoParams, written_cost: str | None) -> tuple[SearchContext, str, str | None]:
-    """The search context, the layout kind ('holdout' or 'folds') and why the validation is short."""
+    """The search context, the layout kind ('holdout', 'folds' or 'recordings') and why the validation is
+    short. Several recordings (three or more with fitting data): each left out in turn ('recordings')."""
     n_train, n_val = ds.n_scored("train"), ds.n_scored("validation") if ds.ranges.get("validation") else 0
     from ..protocol import allowed_warmup
 
@@ -170,7 +171,8 @@ def context(spec, ds: Dataset, params: AutoParams, written_cost: str | None) -> 
         cost=written_cost,
         budget=float(params.budget),
     )
-    return ctx, ("folds" if small else "holdout"), short
+    mode = "recordings" if possible_recording_folds(ds) else ("folds" if small else "holdout")
+    return ctx, mode, short
 
 
 class Search:
@@ -201,15 +203,16 @@ class Search:
         self.interrupted: str | None = None
         self.started = time.monotonic()
         self.tasks_done = 0
-        folds = possible_folds(ds, FOLDS) if self.mode == "folds" else 0
+        kind = "recording" if self.mode == "recordings" else "fold"
+        folds = {"folds": possible_folds(ds, FOLDS), "recordings": possible_recording_folds(ds)}.get(self.mode, 0)
         self.folds = folds
         n_screen = min(SCREEN_SAMPLES, self.ctx.n_train)
         self.screen_layouts = (
-            [Layout("fold", fold=i, folds=folds) for i in range(folds)]
+            [Layout(kind, fold=i, folds=folds) for i in range(folds)]
             if folds
             else [Layout("screen", samples=n_screen) if n_screen < self.ctx.n_train else Layout("full")]
         )
-        self.final_layouts = [Layout("fold", fold=i, folds=folds) for i in range(folds)] if folds else [Layout("full")]
+        self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in range(folds)] if folds else [Layout("full")]
         self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
         self.base = self._base_spec()
 
@@ -236,7 +239,7 @@ class Search:
     def _n_layout(self, layout: Layout) -> int:
         if layout.kind == "screen":
             return layout.samples
-        if layout.kind == "fold":
+        if layout.kind in ("fold", "recording"):
             return int((self.ctx.n_train + self.ctx.n_validation) * (layout.folds - 1) / layout.folds)
         return self.ctx.n_train
 
@@ -561,6 +564,11 @@ class Search:
         short = None
         if self.mode == "folds":
             short = f"{self.short}: the candidates were cross-validated in {self.folds} blocks"
+        elif self.mode == "recordings":
+            short = (
+                f"the {self.folds} training recordings were each left out in turn (a validation split taken from "
+                "the same recordings cannot tell how a model carries over to another recording)"
+            )
         elif self.short:
             short = self.short
         choice = choose(
@@ -717,6 +725,11 @@ def describe_plan(spec, ds: Dataset) -> list[str]:
         lines.append(
             f"ranking: blocked cross-validation in {possible_folds(ds, FOLDS)} blocks of the training and "
             f"validation samples ({short})"
+        )
+    elif mode == "recordings":
+        lines.append(
+            f"ranking: free-run NMSE on each of the {possible_recording_folds(ds)} training recordings in turn, "
+            "the model trained on the others (leave one recording out)"
         )
     else:
         n = min(SCREEN_SAMPLES, ctx.n_train)

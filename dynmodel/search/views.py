@@ -12,7 +12,12 @@ so a fit inside the search cannot read a test output: the search's checks on tes
   recording (adjacent ranges merged into one span) are cut into ``k`` consecutive blocks; fold ``i``
   validates on block ``i`` of every span and trains on the others. A validation block continues the free
   run of its recording (as a validation split that follows the training split does); when the spec's
-  validation split has an initialization window, the block is a recording of its own with that window.
+  validation split has an initialization window, the block is a recording of its own with that window;
+* ``recording i of k``: leave one recording out, when the training and validation samples come from
+  :data:`MIN_RECORDINGS` or more recordings (runs at other operating conditions: other pressures, loads,
+  amplitudes). Fold ``i`` validates on all of recording ``i``'s training and validation samples, trained
+  on the other recordings': how well a model carries over to a recording it has not seen, which is what
+  a test recording asks and a validation split taken from the same recordings cannot tell.
 
 Every layout is a deterministic function of the dataset and its arguments.
 """
@@ -28,11 +33,13 @@ from ..data.dataset import Dataset, Recording
 FIT_SPLITS = ("train", "validation")
 #: smallest validation block of a fold (samples)
 MIN_BLOCK = 20
+#: leave one recording out when the fitting data hold at least this many recordings
+MIN_RECORDINGS = 3
 
 
 @dataclass(frozen=True)
 class Layout:
-    kind: str = "full"  # "full" | "screen" | "fold"
+    kind: str = "full"  # "full" | "screen" | "fold" | "recording"
     samples: int = 0  # screen: training samples kept
     fold: int = 0
     folds: int = 0
@@ -43,6 +50,8 @@ class Layout:
             return f"screen ({self.samples} training samples)"
         if self.kind == "fold":
             return f"fold {self.fold + 1}/{self.folds}"
+        if self.kind == "recording":
+            return f"recording {self.fold + 1}/{self.folds} left out"
         return "full"
 
     def to_json(self) -> dict[str, Any]:
@@ -169,10 +178,41 @@ def fold(ds: Dataset, i: int, k: int) -> Dataset:
     return _compact(out, {s: rows for s, rows in pieces.items() if rows})
 
 
+def _by_recording(ds: Dataset) -> list[list[tuple[int, int, int]]]:
+    """The spans of every recording that holds training or validation samples, in recording order."""
+    groups: dict[int, list[tuple[int, int, int]]] = {}
+    for r, a, b in spans(ds):
+        groups.setdefault(r, []).append((r, a, b))
+    return [groups[r] for r in sorted(groups)]
+
+
+def possible_recording_folds(ds: Dataset, min_recordings: int = MIN_RECORDINGS) -> int:
+    """The number of recordings to leave out in turn (0 when fewer than ``min_recordings`` hold fitting data,
+    or one of them is too short to validate ``MIN_BLOCK`` samples after the transient and the window)."""
+    groups = _by_recording(ds)
+    if len(groups) < min_recordings:
+        return 0
+    window = _windows(ds).get("validation", 0)
+    for g in groups:
+        if max(b - a for _, a, b in g) - ds.transient - window < MIN_BLOCK:
+            return 0
+    return len(groups)
+
+
+def recording_fold(ds: Dataset, i: int) -> Dataset:
+    """Recording ``i`` (of those with fitting data) as the validation, the others as training."""
+    groups = _by_recording(ds)
+    train = [s for j, g in enumerate(groups) if j != i for s in g]
+    val = list(groups[i])
+    return _compact(ds, {"train": train, "validation": val})
+
+
 def view(ds: Dataset, layout: Layout) -> Dataset:
     """The dataset a candidate is fitted on under ``layout``."""
     if layout.kind == "screen":
         return screen(ds, layout.samples)
     if layout.kind == "fold":
         return fold(ds, layout.fold, layout.folds)
+    if layout.kind == "recording":
+        return recording_fold(ds, layout.fold)
     return fit_part(ds)
