@@ -5,8 +5,11 @@ clipped), a twice larger one, and, where the protocol lets a run start from meas
 external mode with a tune-in inside that window (fed back, it models smooth, well-excited outputs best,
 thesis 5.3.2, and can diverge elsewhere: the search's band checks catch that). Every candidate is random:
 the search fits several seeds and judges the median. Neighbours of a good network: twice the elements,
-weaker and stronger input weights, slower leaky elements, a ridge readout over all states, and the
-external mode for an internal network.
+weaker and stronger input weights, slower leaky elements, a ridge readout over all states, the
+external mode for an internal network, and, for an internal network on data without delay lines, input
+delay lines in difference form u(t) - u(t - d) at d = 1, 2, 5, 10, 25, 50, 100 samples (at most a fiftieth of
+the training samples): an external memory of the input's recent displacements, what pre-sliding friction
+and other hysteresis need (thesis 6.2.3; a data-side extension, the data section patched).
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ _COST = 1.2e-7
 _FIXED = 0.1
 #: the shortest tune-in worth an external network
 _MIN_TUNE_IN = 5
+#: delays (samples) of the input delay lines offered around an internal network
+_DELAYS = (1, 2, 5, 10, 25, 50, 100)
 
 
 def _work(ctx: SearchContext, size: int, external: bool = False) -> float:
@@ -28,11 +33,19 @@ def _work(ctx: SearchContext, size: int, external: bool = False) -> float:
     return _FIXED + _COST * n * size * (1.5 if external else 1.0) + 2e-6 * size * size
 
 
-def _cand(ctx: SearchContext, summary: str, params: dict[str, Any], size: int, external: bool = False) -> Candidate:
+def _cand(
+    ctx: SearchContext,
+    summary: str,
+    params: dict[str, Any],
+    size: int,
+    external: bool = False,
+    data: dict[str, Any] | None = None,
+) -> Candidate:
     return Candidate(
         family=NAME,
         params=params,
         summary=summary,
+        data=data or {},
         work=_work(ctx, size, external),
         stochastic=True,
     )
@@ -102,6 +115,17 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
             external,
         )
     )
+    delays = [d for d in _DELAYS if d <= ctx.n_train // 50]
+    if not external and len(delays) >= 2 and not ctx.data.get("delay_lines") and not found.candidate.data:
+        out.append(
+            _cand(
+                ctx,
+                f"{mode}, {size} elements, input delay lines u(t) - u(t - d), d = {', '.join(map(str, delays))}",
+                p,
+                size,
+                data={"delay_lines": delays, "delay_form": "difference"},
+            )
+        )
     tune = _tune_in(ctx)
     if not external and tune is not None:
         out.append(
