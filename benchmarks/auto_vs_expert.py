@@ -10,11 +10,12 @@ Cases (local files in ../shared/data, never downloaded; see each PROVENANCE.md):
 * the benchmarks, run from ``specs/benchmarks/<benchmark>-auto.yaml`` (the benchmark source lays out the
   protocol of nonlinear-benchmarks 1.0.1: splits, initialization windows, units): Silverbox (three test
   sets, mV), Cascaded Tanks (V), Bouc-Wen (multisine and sine-sweep, m), EMPS (mm);
-* GMS friction (``dynmodel generate gms``, a random trajectory, 12000 samples, 80 / 20 train / validation,
-  tested on a fresh realization): test NMSE %;
-* pneumatic seal friction (NAPN seal, force from position and pressure): trained on 1, 3 and 7 bar, tested
-  on 5 bar, and trained on 1, 3 and 5 bar, tested on 7 bar: test NMSE %, with every family's default
-  (the narx, esn, annealed-rnn defaults and the external esn) alongside.
+* GMS friction (``dynmodel generate gms`` with its default random trajectory, 12000 samples, 80 / 20 train /
+  validation, tested on a fresh realization of 12000 samples): test NMSE %;
+* pneumatic seal friction (NAPN seal, force from position and pressure, resampled to 100 Hz): trained on
+  1, 3 and 7 bar, tested on 5 bar, and trained on 1, 3 and 5 bar, tested on 7 bar: test NMSE %, with every
+  family's default (the narx, esn, annealed-rnn defaults and the external esn) alongside. Three training
+  recordings: the search leaves each out in turn (docs/auto.md).
 
 Targets (issue 14): within 1.15 x the tuned figures everywhere; below the published best black-box on
 Silverbox, Bouc-Wen and EMPS (<= 2.64 mm), <= 0.40 V on Tanks; GMS <= 3 % test NMSE; on the seals better
