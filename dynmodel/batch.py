@@ -299,6 +299,7 @@ def run_specs(
     wait_running: bool = False,
     max_retries: int = 2,
     poll: float = 0.2,
+    point: Callable[[Any, bool], PointResult] | None = None,
 ) -> Generator[PointResult, None, None]:
     """Fit every variant on ``executor`` and yield a :class:`PointResult` as each one finishes.
 
@@ -315,6 +316,9 @@ def run_specs(
       lost: each was yielded when it finished.
     - ``max_retries``: resubmissions of a point whose worker process died, before it is recorded as
       an error (local process pools; Dask applies its own ``allowed-failures``).
+    - ``point``: the function a worker runs, ``point(variant, keep_model) -> PointResult`` (default
+      :func:`fit_point`); a module-level function, so that it pickles (a search passes its own, with a
+      :class:`Variant` subclass carrying what it needs, see :mod:`dynmodel.search.worker`).
     """
     from .executors import describe, make_executor, slots
 
@@ -377,7 +381,7 @@ def run_specs(
                     if item is None:
                         break
                     try:
-                        future = executor.submit(fit_point, item[0], keep_models)
+                        future = executor.submit(point or fit_point, item[0], keep_models)
                     except BrokenProcessPool:
                         retry.appendleft(item)
                         if inflight:

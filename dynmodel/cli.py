@@ -173,12 +173,20 @@ def fit(
     seed: Optional[int] = typer.Option(None, "--seed", min=0, help="override the spec's seed"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
     force: bool = _FORCE,
+    workers: Optional[int] = typer.Option(
+        None, "--workers", min=1, help="family auto: parallel fits (default one per core; 1: in this process)"
+    ),
+    scheduler: Optional[str] = typer.Option(
+        None, "--scheduler", help="family auto: run the candidates on Dask (local:N or a scheduler address)"
+    ),
 ) -> None:
-    """Fit the spec's model, evaluate free runs on every split, save it to HDF5."""
+    """Fit the spec's model, evaluate free runs on every split, save it to HDF5 (family auto, or no
+    model section: search every family's candidates and keep the best on validation, docs/auto.md)."""
     from . import engine, store
     from .data import load_dataset
     from .paths import check_outputs, spec_inputs
     from .progress import Reporter
+    from .search import search_options
     from .spec import load_spec
     from .usefulness import assess, stability_fix, summary_line
 
@@ -196,7 +204,7 @@ def fit(
         spec_inputs(s, spec),
         force,
     )
-    with Reporter(enabled=not quiet) as progress:
+    with Reporter(enabled=not quiet) as progress, search_options(workers=workers, scheduler=scheduler):
         progress("data", None, "loading")
         ds = load_dataset(s)
         model, runs = engine.fit_dataset(s, ds, progress)
@@ -205,7 +213,11 @@ def fit(
         store.save(model, target)
     elapsed = time.perf_counter() - t0
     recs = ", ".join(ds.source_names())
-    out.print(f"[bold]{s.name}[/]: {s.model.family} fitted with cost {s.cost} on {recs} in {elapsed:.1f} s")
+    family = model.family.name if model.search is None else f"auto -> {model.family.name}"
+    cost = model.spec.get("cost") or s.cost
+    out.print(f"[bold]{s.name}[/]: {family} fitted with cost {cost} on {recs} in {elapsed:.1f} s")
+    if model.search is not None:
+        _print_search(model.search)
     out.print(metrics_table(model.metrics))
     if s.data.noise is not None and s.data.noise.std > 0:
         out.print(
@@ -216,17 +228,25 @@ def fit(
         out.print(f"note: {note}", markup=False, soft_wrap=True)
     out.print(f"model written to {Path(target).resolve()}")
     if json_path:
-        _write_json(
-            json_path,
-            {
-                "metrics": model.metrics,
-                "model": str(Path(target).resolve()),
-                "assessment": [n.to_json() for n in notes],
-            },
-        )
+        payload = {
+            "metrics": model.metrics,
+            "model": str(Path(target).resolve()),
+            "assessment": [n.to_json() for n in notes],
+        }
+        if model.search is not None:
+            payload["search"] = model.search
+        _write_json(json_path, payload)
     if plot:
         _plot_fit(plot, ds, runs, model, s.name)
         out.print(f"plot written to {plot}")
+    if model.search is not None and model.search.get("interrupted"):
+        from .errors import Interrupted
+
+        raise Interrupted(
+            f"the search was {model.search['interrupted']}; the best model so far was saved",
+            str(spec),
+            "rerun to search the rest of the budget (the same seed gives the same search)",
+        )
     bad = model.unstable
     if bad:
         raise FreeRunDiverged(
@@ -239,6 +259,24 @@ def fit(
     line = summary_line(notes, str(spec), s.cost)
     if line:
         err.print(f"warning: {line}", markup=False, soft_wrap=True)
+
+
+def _print_search(record: dict[str, Any]) -> None:
+    """The search's headline, leaderboard and notes (family auto)."""
+    from .search.report import SCREENED, TABLE_HEADERS, headline, leaderboard, table_cells
+
+    out.print(headline(record), markup=False, soft_wrap=True)
+    table = Table(title_justify="left")
+    for h in TABLE_HEADERS:
+        table.add_column(h, justify="right" if h in ("val. NMSE %", "fits", "fit s") else "left")
+    rows = leaderboard(record)
+    for row in rows:
+        table.add_row(*[escape(c) for c in table_cells(row)])
+    out.print(table)
+    if any(r["level"] != "full" for r in rows):
+        out.print(SCREENED, markup=False)
+    for note in record.get("notes") or []:
+        out.print(f"note: {note}", markup=False, soft_wrap=True)
 
 
 def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
@@ -292,9 +330,9 @@ def validate(
     s = load_spec(spec)
     check_outputs([(s.output_path(), "model", "output:")], spec_inputs(s, spec))  # what `fit` would refuse
     ds = load_dataset(s)
-    check_plan(s, ds)
+    plan = check_plan(s, ds)
     out.print(
-        f"[green]ok[/]: {spec} ({s.model.family}, cost {s.cost}, {len(ds.recordings)} recording(s), "
+        f"[green]ok[/]: {spec} ({s.model.family}, cost {s.cost or 'per family'}, {len(ds.recordings)} recording(s), "
         f"inputs {ds.input_names}, outputs {ds.output_names}, sampling time {ds.sampling_time:g})"
     )
     table = Table()
@@ -303,6 +341,9 @@ def validate(
     for row in describe(ds):
         table.add_row(row["split"], str(row["samples"]), str(row["scored"]), escape(", ".join(row["segments"])))
     out.print(table)
+    if isinstance(plan, list):  # family auto: what the search will do
+        for line in plan:
+            out.print(f"auto: {line}", markup=False, soft_wrap=True)
     if resolved:
         print(yaml.safe_dump(s.resolved(), sort_keys=False))
 
@@ -411,6 +452,11 @@ def inspect(
         if key in prov:
             facts.add_row(key, escape(str(prov[key])))
     out.print(facts)
+    if model.search is not None:
+        from .search.report import headline
+
+        summary["search"] = {k: model.search.get(k) for k in ("winner", "winner_summary", "notes", "interrupted")}
+        out.print(f"chosen by family auto: {headline(model.search)}", markup=False, soft_wrap=True)
     out.print(metrics_table(model.metrics, "free-run metrics"))
     line = summary_line(assess(model), model.spec.get("spec_file") or model.provenance.get("spec_file"))
     if line:

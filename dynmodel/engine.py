@@ -54,8 +54,14 @@ def preprocessor(spec, ds: Dataset) -> Preprocessor:
 
 def check_plan(spec, ds: Dataset):
     """The spec's family, unfitted, after checking it can be fitted and scored on ``ds`` (its
-    tune-in leaves scored samples in every split); one-line errors otherwise (``validate`` uses it)."""
+    tune-in leaves scored samples in every split); one-line errors otherwise (``validate`` uses it).
+    For ``family: auto``: the lines that describe the search's plan (nothing is fitted)."""
     from .data.checks import check_warmup
+
+    if spec.model.family == "auto":
+        from .search.run import describe_plan
+
+        return describe_plan(spec, ds)
 
     family_cls = registry.family(spec.model.family)
     try:
@@ -68,7 +74,12 @@ def check_plan(spec, ds: Dataset):
 
 
 def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
-    """Fit the spec's model on an already loaded dataset and evaluate it on every split."""
+    """Fit the spec's model on an already loaded dataset and evaluate it on every split (``family: auto``:
+    search the families first, see :mod:`dynmodel.search`)."""
+    if spec.model.family == "auto":
+        from .search import fit_auto
+
+        return fit_auto(spec, ds, progress)
     family = check_plan(spec, ds)
     return fit_family(family, spec, ds, progress)
 

@@ -39,6 +39,7 @@ if TYPE_CHECKING:
     from .extensions import Extension, ExtensionContext
     from .model import FittedModel
     from .reliability.system import DrivenSystem
+    from .search.space import Candidate, Found, SearchContext
 
 #: progress callback: (stage, fraction done in [0, 1] or None, message)
 Progress = Callable[[str, "float | None", str], None]
@@ -392,6 +393,19 @@ class Family(ABC):
         (delay lines, derived inputs) with ``history`` past samples of each (0: the current value only);
         {} when the family uses every model input anyway."""
         return {}
+
+    # -- the model search (family: auto; docs/plugins.md, docs/auto.md) -------------------------
+    @classmethod
+    def search_space(cls, ctx: SearchContext, around: Found | None = None) -> list[Candidate]:
+        """Candidate configurations of this family for ``family: auto``, most promising first, each a
+        :class:`dynmodel.search.space.Candidate` (params, cost, data-side patch, work estimate).
+
+        ``around`` None: the starting candidates for the data ``ctx`` describes (sizes, the protocol's
+        initialization window, how far test inputs leave the training range). ``around`` a measured
+        candidate of this family that did well (:class:`dynmodel.search.space.Found`, with its fitted
+        instance): its neighbours, the ways to grow it. Cheap (no fitting). [] (the default): the family
+        takes no part in the search."""
+        return []
 
     def check_fitted(self) -> None:
         if not any(k.endswith("_") and not k.startswith("_") for k in vars(self)):

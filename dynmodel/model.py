@@ -74,6 +74,7 @@ class FittedModel:
     train_input: np.ndarray | None = None  # raw training inputs (for reliability checks)
     train_input_lengths: np.ndarray | None = None
     train_output: np.ndarray | None = None  # measured training outputs (tune-in of external-mode checks)
+    search: dict[str, Any] | None = None  # family: auto: the search that chose this model (docs/auto.md)
 
     def __post_init__(self) -> None:
         self.family.model_ = self  # the family's predict / score / dynmodel.save work in physical units
@@ -210,6 +211,13 @@ def evaluate(
                 unstable = {"recording": ds.recordings[rec].name, "sample": int(k), "time": float(k * st)}
                 break
         y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
+        if not unstable and rows and not np.isfinite(y).all():  # a test set whose outputs are unknown (NaN)
+            entry.update({m: None for m in metrics})
+            entry["unscored"] = "the measured outputs are unknown (NaN)"
+            if one is not None:
+                entry["nmse_1"] = None
+            out[split] = entry
+            continue
         if unstable:
             entry.update({m: None for m in metrics})
             entry["unstable_from"] = unstable

@@ -451,18 +451,20 @@ def spec_model() -> type[BaseModel]:
     model_variants = [_model_spec_model(n, f) for n, f in fams.items()]
     if not model_variants:
         raise SpecError("no model family is installed", fix="pip install -e . in the dynmodel folder")
-    ModelSpec = (
-        Annotated[Union[tuple(model_variants)], Field(discriminator="family")]
-        if len(model_variants) > 1
-        else model_variants[0]
-    )
+    from .search.params import auto_model_spec
+
+    AutoSpec = auto_model_spec()  # family: auto, the model search (docs/auto.md)
+    ModelSpec = Annotated[Union[tuple([*model_variants, AutoSpec])], Field(discriminator="family")]  # type: ignore[valid-type]
 
     class Spec(StrictModel):
         """A dynmodel experiment: data, model family, cost, evaluation."""
 
         name: str = Field("model", description="experiment name, used for the default output file")
         data: DataSpec  # type: ignore[valid-type]
-        model: ModelSpec  # type: ignore[valid-type]
+        model: ModelSpec = Field(  # type: ignore[valid-type]
+            default_factory=lambda: AutoSpec(family="auto"),
+            description="the model family and its params; left out: family auto (search every family)",
+        )
         cost: Optional[Literal["mse1", "mse_inf"]] = Field(
             None,
             description="mse1: one-step error; mse_inf: free-running error; default: the family's own "
@@ -477,7 +479,7 @@ def spec_model() -> type[BaseModel]:
 
         @model_validator(mode="after")
         def _family_cost(self):
-            if self.cost is None:
+            if self.cost is None and self.model.family != "auto":  # type: ignore[attr-defined]  # auto: each candidate its family's own
                 self.cost = getattr(fams.get(self.model.family), "default_cost", "mse1")  # type: ignore[attr-defined]
             return self
 
@@ -612,7 +614,7 @@ def _dotted(loc: tuple) -> str:
             continue
         if _is_member_tag(p):
             continue
-        if isinstance(p, str) and parts == ["model"] and p in registry.families():
+        if isinstance(p, str) and parts == ["model"] and (p in registry.families() or p == "auto"):
             continue
         parts.append(f"[{p}]" if isinstance(p, int) else str(p))
     return ".".join(parts).replace(".[", "[")
@@ -718,7 +720,7 @@ def _precheck_plugins(raw: dict[str, Any], source: str) -> None:
     model = raw.get("model")
     if isinstance(model, dict) and "family" in model:
         known = sorted(registry.families())
-        if model["family"] not in known:
+        if model["family"] not in known and model["family"] != "auto":
             what, fix = registry.unknown_name_message("family", str(model["family"]), known)
             raise SpecError(what, f"{source}: model.family", fix)
     data = raw.get("data")

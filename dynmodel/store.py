@@ -10,6 +10,7 @@ Layout (``format_version`` 1)::
                       its attr "split" holds the key); attr "metrics_json" holds everything
     /provenance       attrs: dynmodel version, seed, sha256 of the training data, library versions
     /data/            training inputs and outputs (for reliability checks), gzip-compressed
+    /search           (family: auto only) string dataset: the search record as JSON (docs/auto.md)
 
 The file is written to a temporary name in the target folder (``.<name>.<pid>@<host>.<random>.tmp``)
 and renamed, so a crash never leaves a half-written model behind; a temporary file left by a killed
@@ -183,6 +184,8 @@ def save(model: FittedModel | Family, path: str | Path) -> Path:
             for split, values in model.metrics.items():
                 sg = eg.create_group(eval_group(split))
                 _write_attrs(sg, {"split": split, **{k: v for k, v in values.items() if k != "per_output"}})
+            if model.search is not None:  # family: auto: every candidate, its metrics and verdict (docs/auto.md)
+                f.create_dataset("search", data=json.dumps(model.search, default=_json_default))
             prov = f.create_group("provenance")
             _write_attrs(prov, model.provenance)
             if model.train_input is not None:
@@ -266,6 +269,7 @@ def load(path: str | Path, families: Mapping[str, type[Family]] | None = None) -
             bounds = (np.asarray(pg["bounds_low"][()]), np.asarray(pg["bounds_high"][()]))
             metrics = json.loads(f["eval"].attrs["metrics_json"])
             provenance = _read_attrs(f["provenance"])
+            search = json.loads(f["search"][()]) if "search" in f else None
             train_input = lengths = train_output = None
             if "data" in f and "train_input" in f["data"]:
                 train_input = np.asarray(f["data/train_input"][()])
@@ -279,4 +283,4 @@ def load(path: str | Path, families: Mapping[str, type[Family]] | None = None) -
         raise ModelFileError(
             f"corrupt model file ({type(exc).__name__}: {exc})", str(path), "refit with `dynmodel fit`"
         ) from None
-    return FittedModel(family, pre, bounds, spec, metrics, provenance, train_input, lengths, train_output)
+    return FittedModel(family, pre, bounds, spec, metrics, provenance, train_input, lengths, train_output, search)

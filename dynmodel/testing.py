@@ -449,3 +449,52 @@ def _driven_system(case: FamilyCase) -> None:
     V = system.drive(np.tile(system.inputs.mean, (2, 1)))
     nxt = system.step(X, V)
     require(nxt.shape == (2, m) and np.isfinite(nxt).all(), "step() maps (R, M) states to finite (R, M) states")
+
+
+@family_check("search_space", hook="search_space")
+def _search_space(case: FamilyCase) -> None:
+    """``family: auto``: the starting candidates and the neighbours are well-formed candidates of the family,
+    with finite work estimates; the first one fits the contract system and scores; under a protocol that lets
+    a run use no measured output (``max_warmup`` 0) the candidates need none."""
+    from .search.space import Candidate, Found, SearchContext
+
+    n_val = case.n_train // 4
+    ctx = SearchContext(
+        input_names=("u",),
+        output_names=("y",),
+        sampling_time=1.0,
+        n_train=case.n_train - n_val,
+        n_validation=n_val,
+        data={"delay_lines": [], "derived_inputs": [], "detrend": []},
+    )
+    found = case.cls.search_space(ctx)
+    require(isinstance(found, list) and found, "search_space(ctx) returns a non-empty list of Candidates")
+    for cand in found:
+        require(isinstance(cand, Candidate), f"search_space returns Candidates (got {type(cand).__name__})")
+        require(cand.family == case.cls.name, f"a candidate of family '{cand.family}', not '{case.cls.name}'")
+        require(cand.cost in (None, "mse1", "mse_inf"), f"candidate cost {cand.cost!r} is not mse1 or mse_inf")
+        for w in (cand.work, cand.screen_work):
+            require(w is None or (math.isfinite(w) and w >= 0), f"work estimate {w!r} is not a finite number >= 0")
+        case.cls(**cand.params)  # the params are valid (ParameterError otherwise)
+        if cand.screen:
+            case.cls(**{**cand.params, **cand.screen})
+    first = found[0]
+    est = case.cls(**first.params)
+    cast(Any, est).fit(case.u, case.y, validation=0.25, seed=0, cost=first.cost or case.cls.default_cost)
+    score = est.score(case.u_test, case.y_test)
+    require(score > case.min_score, f"the first candidate's free run scores R^2 {score:.3g} on fresh data")
+    around = case.cls.search_space(ctx, Found(first, est, est.model_.metrics, 1.0))
+    require(isinstance(around, list), "search_space(ctx, around) returns a list (possibly empty)")
+    for cand in around:
+        require(isinstance(cand, Candidate) and cand.family == case.cls.name, "neighbours are Candidates of the family")
+        case.cls(**cand.params)
+    from dataclasses import replace
+
+    strict = case.cls.search_space(replace(ctx, max_warmup=0))
+    for cand in strict[:2]:
+        est = case.cls(**cand.params)
+        cast(Any, est).fit(case.u, case.y, validation=0.25, seed=0, cost=cand.cost or case.cls.default_cost)
+        require(
+            est.warmup == 0,
+            f"with max_warmup 0 (no measured output allowed) the candidate '{cand.summary}' needs {est.warmup}",
+        )

@@ -212,8 +212,11 @@ def _read_recording(p: Any, src: dict[str, Any], resolve) -> tuple[np.ndarray, n
     return data, (cols[str(time_col).strip()] if time_col is not None else None), path, path.name
 
 
-def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], float | None]:
-    """The recordings of a file source, and the sampling time its time column gives (None without one)."""
+def _file_recordings(
+    src: dict[str, Any], resolve, missing_outputs: bool = False
+) -> tuple[list[Recording], float | None]:
+    """The recordings of a file source, and the sampling time its time column gives (None without one).
+    ``missing_outputs``: the outputs may be NaN (unknown: a test set whose outputs the user holds back)."""
     paths = src["path"] if isinstance(src["path"], list) else [src["path"]]
     selectors = list(src["input"]) + list(src["output"])
     n_in = len(src["input"])
@@ -222,7 +225,11 @@ def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], flo
     for p in paths:
         data, t, path, label = _read_recording(p, src, resolve)
         names = [str(s) for s in selectors]
-        check_finite(data, names, str(path))
+        if missing_outputs:  # NaN outputs are unknown ones (never scored); inf is still an error
+            check_finite(data[:, :n_in], names[:n_in], str(path))
+            check_finite(np.where(np.isnan(data[:, n_in:]), 0.0, data[:, n_in:]), names[n_in:], str(path))
+        else:
+            check_finite(data, names, str(path))
         if t is not None:
             data, step = resample.uniform(t * float(src.get("time_unit") or 1.0), data, src.get("resample"), str(path))
             steps.append((step, str(path)))
@@ -342,7 +349,7 @@ def _merge_source(main: dict[str, Any], override: dict[str, Any], split: str, in
     return merged
 
 
-def _load_source(src: dict[str, Any], resolve, where: str):
+def _load_source(src: dict[str, Any], resolve, where: str, missing_outputs: bool = False):
     if "generator" in src:
         rec, generated_st, ins, outs = _generator_recording(src, where)
         return [rec], generated_st, ins, outs
@@ -352,7 +359,7 @@ def _load_source(src: dict[str, Any], resolve, where: str):
         )
     if src.get("resample") is not None and src.get("time_column") is None:
         raise SpecError("resample needs the time stamps", f"{where}.resample", "add time_column: NAME (and time_unit)")
-    recs, step = _file_recordings(src, resolve)
+    recs, step = _file_recordings(src, resolve, missing_outputs)
     st: Any = src.get("sampling_time")
     if step is not None:
         if st is not None and abs(float(st) - step) > resample.UNIFORM_TOLERANCE * step:
@@ -438,7 +445,7 @@ def _separate_sources(data: dict[str, Any], resolve, source: str, main: LoadedSo
     out: list[_Separate] = []
     for key, override, where, index in wanted:
         src = _merge_source(data, override, "validation" if key == "validation" else "test", index)
-        loaded = _load_source(src, resolve, where)
+        loaded = _load_source(src, resolve, where, missing_outputs=key != "validation")
         what = "validation" if key == "validation" else f"test set '{key[5:]}'" if ":" in key else "test"
         _check_separate(what, loaded, main, f"{source}: {where}")
         recs = loaded[0]

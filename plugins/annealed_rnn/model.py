@@ -206,6 +206,13 @@ class AnnealedRnn(EchoStateNetwork):
 
         return extensions(cause, ctx)
 
+    # ------------------------------------------------------------------ family: auto (docs/plugins.md)
+    @classmethod
+    def search_space(cls, ctx, around=None):
+        from .search_space import search_space
+
+        return search_space(ctx, around)
+
 
 def _stage_reporter(
     report: Callable[[int, int, float, float], None], size: int

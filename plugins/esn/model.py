@@ -425,3 +425,10 @@ class EchoStateNetwork(Family):
         from .extensions import extensions
 
         return extensions(cause, ctx)
+
+    # ------------------------------------------------------------------ family: auto (docs/plugins.md)
+    @classmethod
+    def search_space(cls, ctx, around=None):
+        from .search import search_space
+
+        return search_space(ctx, around)

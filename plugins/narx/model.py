@@ -733,3 +733,10 @@ class Narx(Family):
         from .extensions import include_inputs
 
         return include_inputs(channels, history, ctx)
+
+    # ------------------------------------------------------------------ family: auto (docs/plugins.md)
+    @classmethod
+    def search_space(cls, ctx, around=None):
+        from .search import search_space
+
+        return search_space(ctx, around)

@@ -221,7 +221,7 @@ def free_run_selection(
         if use_val and val is not None and p.patience is not None:  # (use_val implies both)
             err = split_error(st, data, val, w, band)
             history[-1]["validation_nmse"] = None if not np.isfinite(err) else 100 * err
-            if err < best_err * (1 - 1e-12):
+            if best is None or err < best_err * (1 - 1e-12):  # the start is kept even when it diverges there
                 best, best_err, since_best = (exps.copy(), outs.copy(), w.copy()), err, 0
             else:
                 since_best += 1

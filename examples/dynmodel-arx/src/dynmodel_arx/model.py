@@ -209,6 +209,30 @@ class Arx(Family):
         self.estimation_ = list(attrs.get("estimation") or [])
         return self
 
+    # ------------------------------------------------------------------ family: auto
+    @classmethod
+    def search_space(cls, ctx: Any, around: Any = None) -> list[Any]:
+        """Candidates for ``family: auto`` (docs/plugins.md): output-error models of a few orders; around a
+        good one, two more output and input lags. The free run starts from rest, so any protocol allows it."""
+        from dynmodel.search.space import Candidate
+
+        def cand(na: int, nb: int) -> Candidate:
+            work = 0.05 + 2e-7 * max(ctx.n_train, 1) * (na + nb) * 20  # least squares + output-error solves
+            return Candidate(
+                cls.name,
+                {"na": na, "nb": nb},
+                f"output error, na={na}, nb={nb}",
+                cost="mse_inf",
+                work=work,
+                complexity=float(na + nb * ctx.n_inputs + 1),
+                stochastic=False,
+            )
+
+        if around is None:
+            return [cand(2, 3), cand(4, 5)]
+        na, nb = int(around.candidate.params.get("na", 2)), int(around.candidate.params.get("nb", 3))
+        return [cand(na + 2, nb + 2)] if na + 2 <= 20 else []
+
     def summary(self) -> dict[str, Any]:
         info: dict[str, Any] = {"orders": f"na={self.params.na}, nb={self.params.nb}, nk={self.params.nk}"}
         for k in range(self.n_outputs_):

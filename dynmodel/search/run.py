@@ -1,0 +1,761 @@
+"""``family: auto``: the search loop (docs/auto.md).
+
+Stages, each with members fixed before it starts (see :mod:`.plan` for the budget rule):
+
+1. ``screen``: every family's starting candidates (its ``search_space`` hook), one seed each, in their
+   cheap screening variant, on the screening layout (the last :data:`SCREEN_SAMPLES` training samples;
+   for short data the blocked cross-validation); the linear and mean references alongside;
+2. ``grow``: the neighbours of the best :data:`GROW_FROM` candidates (the hook with ``around``);
+3. ``full``: the best :data:`SURVIVORS` in their full variant on the final layout (all training samples, or
+   the folds), random ones with every seed (a screening fit that already was a final one is not repeated);
+4. ``moves``: ``dynmodel diagnose``'s detectors on the leader, and the extensions they propose (the
+   residual says what is missing: extend, refit, keep what validates);
+
+then the choice (:mod:`.select`) on the final layout, and the winner's model: the fit already made on
+the full layout, or (cross-validation) a fit on the spec's own training and validation splits. Every fit
+runs through :func:`dynmodel.batch.run_specs` on the executor given (a local process pool by default).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .. import registry
+from ..batch import run_specs
+from ..data.dataset import Dataset
+from ..errors import DynmodelError
+from ..extensions import merge
+from ..family import Progress, no_progress
+from .checks import failed_split
+from .params import AutoParams, searchable_families
+from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
+from .select import POOR, Choice, Summary, choose, summarize
+from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
+from .views import Layout, possible_folds, possible_recording_folds
+from .worker import Task, TaskResult, run_task
+
+#: training samples of the screening layout (longer training splits are cut to their last samples)
+SCREEN_SAMPLES = 12000
+#: cross-validate when the validation split has fewer scored samples than this ...
+CV_BELOW = 1000
+#: ... and the training and validation samples together are at most this many
+CV_MAX = 20000
+FOLDS = 5
+#: configurations carried from the screening to the final layout
+SURVIVORS = 3
+#: ... plus the best of every other family within this factor of the best score
+FAMILY_SURVIVOR = 3.0
+#: candidates whose neighbours are measured
+GROW_FROM = 2
+#: rounds of diagnose's moves, and moves measured per round
+MOVE_ROUNDS = 2
+MOVES = 4
+
+
+@dataclass
+class Entry:
+    """One candidate configuration and everything measured of it."""
+
+    cand: Candidate
+    origin: str
+    results: dict[str, list[TaskResult]] = field(default_factory=dict)  # level -> fit results
+    summaries: dict[str, Summary] = field(default_factory=dict)
+    verdict: str = "not run"
+    #: the screening fits count as final fits (same variant, same layouts): a deterministic candidate needs
+    #: no refit, a random one only its other seeds
+    reuse_screen: bool = False
+
+    def results_at(self, level: str) -> list[TaskResult]:
+        if level == "final" and self.reuse_screen:
+            return self.results.get("screen", []) + self.results.get("final", [])
+        return self.results.get(level, [])
+
+    @property
+    def label(self) -> str:
+        return f"{self.cand.family}: {self.cand.summary}"
+
+    @property
+    def random(self) -> bool:
+        if self.cand.stochastic is not None:
+            return bool(self.cand.stochastic)
+        cls = registry.families().get(self.cand.family)
+        return bool(getattr(cls, "stochastic", True))
+
+    def best_level(self) -> str | None:
+        return "final" if "final" in self.summaries else ("screen" if "screen" in self.summaries else None)
+
+    def to_json(self) -> dict[str, Any]:
+        out = self.cand.to_json()
+        out["origin"] = self.origin
+        out["verdict"] = self.verdict
+        out["levels"] = {k: s.to_json() for k, s in self.summaries.items()}
+        level = self.best_level()
+        out["validation_nmse"] = (
+            None if level is None or not self.summaries[level].finite else self.summaries[level].score
+        )
+        out["level"] = level
+        out["fit_seconds"] = round(sum(r.seconds for rs in self.results.values() for r in rs), 3)
+        fits = [r for rs in self.results.values() for r in rs]
+        if fits:
+            last = max(fits, key=lambda r: (r.layout.get("kind") == "full", r.key))
+            out["metrics"] = last.metrics
+            out["checks"] = last.checks
+            out["selection"] = last.selection
+            if last.warnings:
+                out["warnings"] = last.warnings
+        return out
+
+
+@dataclass
+class SearchResult:
+    model: Any  # FittedModel of the winner (None when nothing usable was found)
+    record: dict[str, Any]
+
+
+def _seed_for(spec_seed: int, key: str, index: int) -> int:
+    digest = int(hashlib.sha256(key.encode()).hexdigest()[:8], 16)
+    return int(np.random.SeedSequence([int(spec_seed), digest, index]).generate_state(1)[0])
+
+
+def _in_worker() -> bool:
+    """Is this process itself a worker of a pool or a Dask cluster (then the search runs in-process)?"""
+    import multiprocessing
+    import sys
+
+    if multiprocessing.parent_process() is not None:
+        return True
+    if "distributed" in sys.modules:
+        try:
+            from distributed import get_worker
+
+            get_worker()
+            return True
+        except (ImportError, ValueError):
+            return False
+    return False
+
+
+def context(spec, ds: Dataset, params: AutoParams, written_cost: str | None) -> tuple[SearchContext, str, str | None]:
+    """The search context, the layout kind ('holdout', 'folds' or 'recordings') and why the validation is
+    short. Several recordings (three or more with fitting data): each left out in turn ('recordings')."""
+    n_train, n_val = ds.n_scored("train"), ds.n_scored("validation") if ds.ranges.get("validation") else 0
+    from ..protocol import allowed_warmup
+
+    limits = list(allowed_warmup(ds).values())
+    max_warmup = min(limits) if limits else None
+    excursion = max((e["excess"] for e in ds.input_excursions()), default=0.0)
+    short = None
+    if n_val < CV_BELOW:
+        short = f"the validation split has only {n_val} scored samples" if n_val else "there is no validation split"
+    small = short is not None and n_train + n_val <= CV_MAX and possible_folds(ds, FOLDS) >= 2
+    data = dict(spec.resolved()["data"])
+    ctx = SearchContext(
+        input_names=tuple(ds.input_names),
+        output_names=tuple(ds.output_names),
+        sampling_time=float(ds.sampling_time),
+        n_train=int(n_train),
+        n_validation=int(n_val),
+        data=data,
+        max_warmup=max_warmup,
+        excursion=float(excursion),
+        small=bool(small),
+        seeds=int(params.seeds),
+        cost=written_cost,
+        budget=float(params.budget),
+    )
+    mode = "recordings" if possible_recording_folds(ds) else ("folds" if small else "holdout")
+    return ctx, mode, short
+
+
+class Search:
+    """One search (see the module docstring); :meth:`run` returns a :class:`SearchResult`."""
+
+    def __init__(
+        self,
+        spec,
+        ds: Dataset,
+        executor=None,
+        progress: Progress = no_progress,
+        cancel: threading.Event | None = None,
+        written_cost: str | None = None,
+    ):
+        self.spec = spec
+        self.ds = ds
+        self.params: AutoParams = spec.model.params
+        self.executor = executor
+        self.progress = progress
+        self.cancel = cancel or threading.Event()
+        self.ctx, self.mode, self.short = context(spec, ds, self.params, written_cost)
+        self.budget = Budget(float(self.params.budget))
+        self.entries: dict[str, Entry] = {}
+        self.references: list[TaskResult] = []
+        self.kept: dict[str, Any] = {}  # task key -> ModelArrays
+        self.notes: list[str] = []
+        self.stages: list[dict[str, Any]] = []
+        self.interrupted: str | None = None
+        self.started = time.monotonic()
+        self.tasks_done = 0
+        kind = "recording" if self.mode == "recordings" else "fold"
+        folds = {"folds": possible_folds(ds, FOLDS), "recordings": possible_recording_folds(ds)}.get(self.mode, 0)
+        self.folds = folds
+        n_screen = min(SCREEN_SAMPLES, self.ctx.n_train)
+        self.screen_layouts = (
+            [Layout(kind, fold=i, folds=folds) for i in range(folds)]
+            if folds
+            else [Layout("screen", samples=n_screen) if n_screen < self.ctx.n_train else Layout("full")]
+        )
+        self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in range(folds)] if folds else [Layout("full")]
+        self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
+        self.base = self._base_spec()
+
+    # ------------------------------------------------------------------ specs and tasks
+    def _base_spec(self) -> dict[str, Any]:
+        raw = self.spec.resolved()
+        raw.pop("model", None)
+        raw["output"] = None
+        raw["evaluation"] = {**raw.get("evaluation", {}), "metrics": ["nmse"], "one_step": False}
+        if self.ctx.cost is None:
+            raw.pop("cost", None)
+        return raw
+
+    def raw_for(self, cand: Candidate, seed: int, screening: bool) -> dict[str, Any]:
+        raw = merge(self.base, cand.patch(screening))
+        raw["seed"] = int(seed)
+        return raw
+
+    def seeds_of(self, entry: Entry, count: int) -> list[int]:
+        if not entry.random:
+            return [int(self.spec.seed)]
+        return [_seed_for(self.spec.seed, entry.cand.key, i) for i in range(count)]
+
+    def _n_layout(self, layout: Layout) -> int:
+        if layout.kind == "screen":
+            return layout.samples
+        if layout.kind in ("fold", "recording"):
+            return int((self.ctx.n_train + self.ctx.n_validation) * (layout.folds - 1) / layout.folds)
+        return self.ctx.n_train
+
+    def _group(self, entry: Entry, level: str, seeds: list[int]) -> Group:
+        screening = level == "screen"
+        layouts = self.screen_layouts if screening else self.final_layouts
+        tasks, work = [], 0.0
+        for seed in seeds:
+            raw = self.raw_for(entry.cand, seed, screening)
+            for layout in layouts:
+                key = f"{entry.cand.key}|{level}|{layout.label}|{seed}"
+                tasks.append(self._task(key, raw, "fit", layout))
+                work += estimated_work(entry.cand, self.ctx, self._n_layout(layout), screening) + TASK_OVERHEAD
+        return Group(f"{entry.cand.key}|{level}", tasks, work)
+
+    def _task(self, key: str, raw: dict[str, Any], kind: str, layout: Layout) -> Task:
+        return Task(
+            key,
+            raw,
+            self.spec.base_dir,
+            self.spec.source,
+            kind=kind,
+            layout=layout,
+            dataset=self.ds if self.in_memory else None,
+            moves=MOVES,
+        )
+
+    # ------------------------------------------------------------------ running a stage
+    def _stopping(self) -> bool:
+        if self.cancel.is_set():
+            return True
+        limit = HARD_LIMIT * self.budget.seconds + HARD_SLACK
+        if time.monotonic() - self.started > limit:
+            if self.interrupted is None:
+                self.interrupted = (
+                    f"stopped at the safety limit of {HARD_LIMIT:g} x the budget + {HARD_SLACK:g} s in wall time "
+                    f"({limit:.0f} s): the result depends on this machine's speed"
+                )
+            return True
+        return False
+
+    def _leader_text(self) -> str:
+        ranked = self.ranking()
+        if not ranked:
+            return "no leader yet"
+        e = self.entries[ranked[0]]
+        level = e.best_level()
+        if level is None:
+            return "no leader yet"
+        s = e.summaries[level]
+        return f"leader {e.label} (validation NMSE {s.score:.4g} %)"
+
+    def _run(self, stage: str, tasks: list[Task]) -> list[TaskResult]:
+        """Run ``tasks`` (heaviest first for the pool), record each result as it comes, return them in task
+        order (never completion order)."""
+        if not tasks or self.interrupted:
+            return []
+        t0 = time.perf_counter()
+        got: dict[str, TaskResult] = {}
+        n = len(tasks)
+        self.progress("search", None, f"{stage}: {n} fits; {self._leader_text()}")
+        for r in run_specs(tasks, self.executor, keep_models=True, point=run_task, cancel=self._stopping):
+            got[r.key] = r  # type: ignore[assignment]
+            self._record(r)  # type: ignore[arg-type]
+            self.tasks_done += 1
+            done = self.budget.planned and min(1.0, self.tasks_done / max(self._planned_tasks, 1))
+            self.progress("search", done or None, f"{stage}: {len(got)}/{n}; {self._leader_text()}")
+        out = [got[t.key] for t in tasks if t.key in got]
+        self.stages.append(
+            {
+                "stage": stage,
+                "tasks": n,
+                "finished": len(out),
+                "seconds": round(time.perf_counter() - t0, 3),
+                "planned": round(self.budget.stages.get(stage, 0.0), 3),
+            }
+        )
+        if self._stopping() and len(out) < n and self.interrupted is None:
+            self.interrupted = "interrupted"
+        return out
+
+    _planned_tasks = 1
+
+    def _record(self, r: TaskResult) -> None:
+        if r.kind == "reference":
+            self.references.append(r)
+            return
+        if r.kind != "fit":
+            return
+        cand_key, level = r.key.split("|")[0], r.key.split("|")[1]
+        entry = self.entries.get(cand_key)
+        if entry is None:
+            return
+        entry.results.setdefault(level, []).append(r)
+        if r.model is not None:
+            self.kept[r.key] = r.model
+            r.model = None
+        entry.summaries[level] = summarize(sorted(entry.results[level], key=lambda x: x.key))  # type: ignore[assignment]
+        complete = not entry.random or len(entry.summaries["screen" if level == "screen" else level].seeds) >= (
+            self.params.seeds
+        )
+        if entry.reuse_screen and (level == "final" or complete):
+            entry.summaries["final"] = summarize(sorted(entry.results_at("final"), key=lambda x: x.key))  # type: ignore[assignment]
+
+    def _screen_is_final(self, cand: Candidate) -> bool:
+        """Are the screening fits of ``cand`` final ones (same variant, same layouts)?"""
+        same_variant = not cand.screen and (cand.screen_cost in (None, cand.cost))
+        return same_variant and self.screen_layouts == self.final_layouts
+
+    # ------------------------------------------------------------------ ranking
+    def ranking(self, level: str | None = None) -> list[str]:
+        """Candidate keys by score at ``level`` (None: each at its best level, final ones first), usable
+        ones (finite, inside the band) first, ties broken by key."""
+
+        def key(k: str):
+            e = self.entries[k]
+            lv = level or e.best_level()
+            s = e.summaries.get(lv) if lv else None
+            if s is None:
+                return (2, 1, math.inf, k)
+            return (0 if s.finite and s.ok else 1, 0 if lv == "final" else 1, s.score, k)
+
+        keys = [
+            k
+            for k in self.entries
+            if (level is None and self.entries[k].summaries) or level in self.entries[k].summaries
+        ]
+        return sorted(keys, key=key)
+
+    def _usable(self, k: str, level: str) -> bool:
+        s = self.entries[k].summaries.get(level)
+        return s is not None and s.finite and s.ok
+
+    def survivors(self) -> list[str]:
+        ranked = [k for k in self.ranking("screen") if self._usable(k, "screen")]
+        if not ranked:
+            ranked = [k for k in self.ranking("screen") if self.entries[k].summaries["screen"].finite]
+        out = ranked[:SURVIVORS]
+        if ranked:
+            best = self.entries[ranked[0]].summaries["screen"].score
+            families = {self.entries[k].cand.family for k in out}
+            for k in ranked[SURVIVORS:]:
+                e = self.entries[k]
+                if e.cand.family not in families and e.summaries["screen"].score <= FAMILY_SURVIVOR * max(best, 1e-12):
+                    out.append(k)
+                    families.add(e.cand.family)
+        return out
+
+    # ------------------------------------------------------------------ stages
+    def _add(self, cand: Candidate, origin: str) -> Entry | None:
+        if cand.key in self.entries:
+            return None
+        entry = Entry(cand, origin, reuse_screen=self._screen_is_final(cand))
+        self.entries[cand.key] = entry
+        return entry
+
+    def _found(self, key: str, level: str) -> Found:
+        e = self.entries[key]
+        s = e.summaries[level]
+        fitted = None
+        results = sorted(e.results_at(level), key=lambda r: r.key)
+        pick = next((r for r in results if r.seed == s.median_seed and r.key in self.kept), None)
+        if pick is not None:
+            try:
+                model = self.kept[pick.key].to_model()
+                fitted = model.family
+            except Exception:  # noqa: BLE001 - growing without the fitted model is still possible
+                fitted = None
+        return Found(e.cand, fitted, pick.metrics if pick else {}, s.score)
+
+    def _stage_screen(self) -> None:
+        families = searchable_families()
+        chosen = self.params.families or list(families)
+        if not chosen:
+            raise DynmodelError(
+                "no installed model family takes part in the search (none implements search_space)",
+                f"{self.spec.source}: model",
+                "name a family in model.family, or install one that supports family: auto",
+            )
+        per_family = [candidates_of(families[name], self.ctx) for name in chosen if name in families]
+        order: list[Candidate] = []
+        for rank in range(max((len(c) for c in per_family), default=0)):
+            order += [c[rank] for c in per_family if rank < len(c)]
+        entries = [e for e in (self._add(c, "start") for c in order) if e is not None]
+        groups = [self._group(e, "screen", self.seeds_of(e, 1)) for e in entries]
+        minimum = len(per_family)  # the first candidate of every family
+        taken = self.budget.take("screen", groups, minimum=min(minimum, len(groups)))
+        refs = [
+            self._task(
+                f"reference|{layout.label}", self.raw_for(order[0], int(self.spec.seed), True), "reference", layout
+            )
+            for layout in (self.final_layouts if self.folds else [Layout("full")])
+        ]
+        tasks = refs + [t for g in taken for t in g.tasks]
+        self._planned_tasks = len(tasks)
+        self._run("screen", tasks)
+        for e in entries:
+            if "screen" not in e.summaries:
+                e.verdict = "not run (budget)"
+
+    def _stage_grow(self) -> None:
+        ranked = [k for k in self.ranking("screen") if self._usable(k, "screen")][:GROW_FROM]
+        new: list[Entry] = []
+        families = searchable_families()
+        for k in ranked:
+            found = self._found(k, "screen")
+            cls = families.get(found.candidate.family)
+            if cls is None:
+                continue
+            for cand in candidates_of(cls, self.ctx, around=found):
+                entry = self._add(cand, f"grown from {k}")
+                if entry is not None:
+                    new.append(entry)
+        groups = [self._group(e, "screen", self.seeds_of(e, 1)) for e in new]
+        taken = self.budget.take("grow", groups, minimum=0)
+        self._planned_tasks += sum(len(g.tasks) for g in taken)
+        self._run("grow", [t for g in taken for t in g.tasks])
+        for e in new:
+            if "screen" not in e.summaries:
+                e.verdict = "not run (budget)"
+
+    def _stage_full(self, keys: list[str]) -> None:
+        groups = []
+        for k in keys:
+            e = self.entries[k]
+            seeds = self.seeds_of(e, self.params.seeds)
+            if e.reuse_screen:  # only the seeds the screening did not fit
+                done = {int(r.seed or 0) for r in e.results.get("screen", [])}
+                seeds = [s for s in seeds if s not in done]
+            if seeds:
+                groups.append(self._group(e, "final", seeds))
+        taken = self.budget.take("full", groups, minimum=1 if groups else 0)
+        self._planned_tasks += sum(len(g.tasks) for g in taken)
+        self._run("full", [t for g in taken for t in g.tasks])
+
+    def _stage_moves(self) -> None:
+        if "moves" in self.params.exclude:
+            return
+        for round_ in range(MOVE_ROUNDS):
+            ranked = [k for k in self.ranking("final") if self._usable(k, "final")]
+            if not ranked or self.interrupted:
+                return
+            leader = self.entries[ranked[0]]
+            seed = leader.summaries["final"].median_seed or int(self.spec.seed)
+            raw = self.raw_for(leader.cand, seed, False)
+            # the detectors refit the leader's spec (a held-out refit with more terms, a reference model)
+            work = 3 * estimated_work(leader.cand, self.ctx) + 1e-4 * self.ctx.n_train
+            diag = Group(
+                "diagnose", [self._task(f"diagnose|{round_}|{leader.cand.key}", raw, "diagnose", Layout("full"))], work
+            )
+            if not self.budget.take("moves", [diag], minimum=0):
+                return
+            self._planned_tasks += 1
+            results = self._run(f"moves {round_ + 1}: diagnose the leader", diag.tasks)
+            if not results or results[0].status != "ok" or not results[0].proposals:
+                return
+            new: list[Entry] = []
+            for prop in results[0].proposals:
+                if prop["cause"] == "inadequate-structure" or (
+                    "data-extensions" in self.params.exclude and "data" in prop["patch"]
+                ):
+                    continue
+                cand = self._candidate_from(leader, raw, prop)
+                if cand is None:
+                    continue
+                entry = self._add(cand, f"move from {leader.cand.key}: {prop['cause']}")
+                if entry is not None:
+                    new.append(entry)
+            groups = [self._group(e, "final", self.seeds_of(e, self.params.seeds)) for e in new]
+            taken = self.budget.take("moves", groups, minimum=0)
+            if not taken:
+                return
+            self._planned_tasks += sum(len(g.tasks) for g in taken)
+            self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks])
+            if self.ranking("final")[:1] == ranked[:1]:
+                return  # no move beat the leader
+
+    def _candidate_from(self, leader: Entry, raw: dict[str, Any], prop: dict[str, Any]) -> Candidate | None:
+        """The candidate a diagnosis proposal makes of the leader's spec (patch merged, then validated)."""
+        from ..spec import validate_spec
+
+        patched = merge(raw, prop["patch"])
+        try:
+            validate_spec(dict(patched), self.spec.source, self.spec.base_dir)
+        except (DynmodelError, ValueError):
+            return None
+        model = patched.get("model") or {}
+        allowed = self.params.families or list(searchable_families())
+        if model.get("family") not in allowed:  # a switch to a family the user left out (or not searchable)
+            return None
+        data = {
+            k: patched["data"][k] for k in patched.get("data", {}) if patched["data"].get(k) != self.base["data"].get(k)
+        }
+        cost = patched.get("cost")
+        if self.ctx.cost is not None and cost != self.ctx.cost:
+            return None
+        work = estimated_work(leader.cand, self.ctx) * 1.5
+        return Candidate(
+            family=str(model.get("family")),
+            params=dict(model.get("params") or {}),
+            summary=f"{leader.cand.summary}; {prop['summary']}",
+            cost=cost,
+            data=data,
+            work=work,
+            stochastic=leader.cand.stochastic,
+        )
+
+    # ------------------------------------------------------------------ the choice and the model
+    def _reference_score(self) -> float | None:
+        refs = sorted(self.references, key=lambda r: r.key)
+        values = []
+        for r in refs:
+            lin = (r.reference or {}).get("linear") or {}
+            nmse = lin.get("nmse") or {}
+            v = nmse.get("validation", nmse.get("train"))
+            if v is None:
+                return None
+            values.append(float(v))
+        return float(np.mean(values)) if values else None
+
+    def decide(self) -> tuple[str | None, Choice, str]:
+        level = "final" if any("final" in e.summaries for e in self.entries.values()) else "screen"
+        summaries = {k: e.summaries[level] for k, e in self.entries.items() if level in e.summaries}
+        labels = {k: e.label for k, e in self.entries.items()}
+        short = None
+        if self.mode == "folds":
+            short = f"{self.short}: the candidates were cross-validated in {self.folds} blocks"
+        elif self.mode == "recordings":
+            short = (
+                f"the {self.folds} training recordings were each left out in turn (a validation split taken from "
+                "the same recordings cannot tell how a model carries over to another recording)"
+            )
+        elif self.short:
+            short = self.short
+        choice = choose(
+            summaries,
+            labels,
+            short_validation=short,
+            excursion=self.ctx.excursion,
+            reference=self._reference_score(),
+            uses_inputs=self.ctx.n_inputs > 0,
+        )
+        for k, e in self.entries.items():
+            if k in choice.verdicts:
+                e.verdict = choice.verdicts[k]
+            elif level not in e.summaries and "screen" in e.summaries:
+                s = e.summaries["screen"]
+                if not s.finite:
+                    e.verdict = f"screening: no usable fit ({s.status})"
+                elif not s.ok:
+                    e.verdict = f"screening: rejected, {s.failure or 'leaves the output band'}"
+                else:
+                    e.verdict = "screened out (validates worse)"
+        return choice.key, choice, level
+
+    def _final_model(self, key: str, level: str):
+        """The winner's FittedModel on the spec's own layout (re-evaluated by the caller)."""
+        e = self.entries[key]
+        s = e.summaries[level]
+        if level == "final" and not self.folds:
+            pick = next(
+                (
+                    r
+                    for r in sorted(e.results_at("final"), key=lambda r: r.key)
+                    if r.seed == s.median_seed and r.key in self.kept
+                ),
+                None,
+            )
+            if pick is not None:
+                return self.kept[pick.key].to_model()
+        seed = s.median_seed if s.median_seed is not None else int(self.spec.seed)
+        task = self._task(f"{e.cand.key}|model|full|{seed}", self.raw_for(e.cand, seed, False), "fit", Layout("full"))
+        self._planned_tasks += 1
+        cancel_set = self.cancel.is_set()
+        results = list(run_specs([task], self.executor, keep_models=True, point=run_task))
+        if not results or results[0].model is None:
+            raise DynmodelError(
+                f"the chosen candidate ({e.label}) failed when fitted on the whole training split: "
+                f"{results[0].message if results else 'no result'}",
+                f"{self.spec.source}: model",
+                "rerun the search with another seed, or fit a family directly",
+            )
+        r: TaskResult = results[0]  # type: ignore[assignment]
+        if not cancel_set and not r.checks.get("ok", False):
+            e.verdict = f"rejected after its final fit: {failed_split(r.checks)}"
+            return None
+        assert r.model is not None  # checked above
+        return r.model.to_model()
+
+    def run(self) -> SearchResult:
+        choice: Choice | None = None
+        level = "screen"
+        key = None
+        try:
+            self._stage_screen()
+            if not self.interrupted:
+                self._stage_grow()
+            surv = self.survivors() if not self.interrupted else []
+            if not self.interrupted:
+                self._stage_full(surv)
+            if not self.interrupted:
+                self._stage_moves()
+        except KeyboardInterrupt:
+            self.interrupted = "interrupted (Ctrl-C)"
+        model = None
+        tried: set[str] = set()
+        while True:
+            key, choice, level = self.decide()
+            if key is None or key in tried:
+                break
+            tried.add(key)
+            try:
+                model = self._final_model(key, level)
+            except KeyboardInterrupt:
+                self.interrupted = "interrupted (Ctrl-C)"
+                model = None
+                break
+            if model is not None:
+                self.entries[key].verdict = "chosen"
+                break
+            self.entries[key].summaries[level].ok = False
+            self.entries[key].summaries[level].failure = "failed its final fit's band check"
+        return SearchResult(model, self.record(key if model is not None else None, choice, level))
+
+    # ------------------------------------------------------------------ the record
+    def record(self, key: str | None, choice: Choice | None, level: str) -> dict[str, Any]:
+        ranked = self.ranking()
+        entries = [self.entries[k] for k in ranked] + [e for k, e in self.entries.items() if k not in ranked]
+        notes = list(self.notes) + (choice.notes if choice else [])
+        winner = self.entries.get(key) if key else None
+        families = sorted({e.cand.family for e in self.entries.values() if e.summaries})
+        tried = sum(1 for e in self.entries.values() if e.summaries)
+        if winner is not None:
+            score = winner.summaries[level].score
+            if score >= POOR:
+                notes.append(
+                    f"even the best model is poor: validation NMSE {score:.3g} % after {tried} candidates of "
+                    f"{', '.join(families)}; the data may not determine the output from the input (check the "
+                    "input and output columns, the sampling, a dead time), or need more data"
+                )
+        ref = self.references[0].reference if self.references else None
+        return {
+            "version": 1,
+            "spec": {"model": {"family": "auto", "params": self.params.model_dump(mode="json")}},
+            "seed": int(self.spec.seed),
+            "mode": self.mode,
+            "folds": self.folds,
+            "layouts": {
+                "screen": [lay.to_json() for lay in self.screen_layouts],
+                "final": [lay.to_json() for lay in self.final_layouts],
+            },
+            "context": {
+                "n_train": self.ctx.n_train,
+                "n_validation": self.ctx.n_validation,
+                "max_warmup": self.ctx.max_warmup,
+                "excursion": self.ctx.excursion,
+                "small": self.ctx.small,
+            },
+            "budget": self.budget.to_json(),
+            "stages": self.stages,
+            "reference": ref,
+            "reference_validation_nmse": self._reference_score(),
+            "level": level,
+            "winner": key,
+            "winner_summary": winner.label if winner else None,
+            "cautious": choice.cautious if choice else [],
+            "notes": notes,
+            "interrupted": self.interrupted,
+            "seconds": round(time.monotonic() - self.started, 3),
+            "candidates": [e.to_json() for e in entries],
+        }
+
+
+def describe_plan(spec, ds: Dataset) -> list[str]:
+    """What ``dynmodel validate`` says about an auto spec: the families, the budget, the layout, the
+    protocol limits and the starting candidates (nothing is fitted)."""
+    params: AutoParams = spec.model.params
+    written = spec.cost if "cost" in spec.model_fields_set else None
+    ctx, mode, short = context(spec, ds, params, written)
+    families = searchable_families()
+    chosen = params.families or list(families)
+    lines = [
+        f"family: auto searches {', '.join(chosen)} with a budget of {params.budget:g} s (planned for 2 cores), "
+        f"{params.seeds} seed(s) per random configuration"
+    ]
+    if mode == "folds":
+        lines.append(
+            f"ranking: blocked cross-validation in {possible_folds(ds, FOLDS)} blocks of the training and "
+            f"validation samples ({short})"
+        )
+    elif mode == "recordings":
+        lines.append(
+            f"ranking: free-run NMSE on each of the {possible_recording_folds(ds)} training recordings in turn, "
+            "the model trained on the others (leave one recording out)"
+        )
+    else:
+        n = min(SCREEN_SAMPLES, ctx.n_train)
+        lines.append(
+            f"ranking: free-run NMSE on the validation split ({ctx.n_validation} scored samples); candidates are "
+            f"screened on {n} training samples first, the best refitted on all {ctx.n_train}"
+        )
+    if ctx.max_warmup is not None:
+        lines.append(f"the protocol lets a run start from at most {ctx.max_warmup} measured outputs")
+    if ctx.excursion > 0.05:
+        lines.append(
+            f"the test inputs leave the training range by {100 * ctx.excursion:.0f} % of its width: simpler, "
+            "bounded candidates are preferred"
+        )
+    if written:
+        lines.append(f"every candidate uses the cost you wrote ({written})")
+    for name in chosen:
+        cands = candidates_of(families[name], ctx)
+        work = sum(estimated_work(c, ctx) for c in cands)
+        lines.append(f"{name}: {len(cands)} starting candidates (about {work:.0f} s of fits on one core)")
+    return lines
+
+
+def record_json(record: dict[str, Any]) -> str:
+    return json.dumps(record, default=str)

@@ -1,0 +1,245 @@
+"""How the search judges its candidates: scores over seeds and folds, and the choice that protects the user.
+
+A candidate's **score** at a level (screening, or the final layout) is its validation free-run NMSE (%):
+the folds of a cross-validation pooled as one validation split (:func:`pooled`), then the **median over seeds** for a random family (a fit
+that failed or diverged counts as infinitely bad, so one lucky draw cannot carry a configuration, and one
+unlucky one cannot sink it). The seed whose score is that median gives the model that is kept.
+
+The **choice** (:func:`choose`), in order:
+
+1. a candidate whose free run leaves the output band on any split's *input* (:mod:`.checks`; for a random
+   family, on at least half of its seeds) is rejected, whatever its validation error;
+2. among the rest, the lowest score is the reference point; a model that ignores its input is set aside
+   when one that uses it scores within :data:`ABOUT_AS_WELL` of that;
+3. candidates within a tie of the lowest score count as equal and the simplest of them wins: the tie is
+   :data:`TIE` (1 %) normally, and :data:`CAUTIOUS_TIE` (10 %) when the validation cannot be trusted
+   to rank finely: a short validation (cross-validated, or fewer than ``short`` scored samples), test
+   inputs that leave the training range by more than :data:`EXTRAPOLATION` of its width, or no candidate
+   that beats the linear reference by :data:`REFERENCE_MARGIN`. The report says when the simpler one was
+   preferred, and why.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .checks import failed_split
+
+TIE = 0.01
+CAUTIOUS_TIE = 0.10
+ABOUT_AS_WELL = 1.25
+#: a clear margin over the linear reference: at most this fraction of its NMSE
+REFERENCE_MARGIN = 0.9
+#: inputs beyond the training range by this fraction of its width make the search cautious
+EXTRAPOLATION = 0.05
+#: input dependence below which a model ignores its input (as :data:`dynmodel.usefulness.INPUT_DEPENDENCE`)
+IGNORES_INPUT = 0.01
+#: a validation NMSE (%) from which even the best model is called poor
+POOR = 50.0
+
+
+@dataclass
+class Summary:
+    """A candidate at one level: its score and what its fits showed."""
+
+    score: float  # inf: no usable fit
+    ok: bool  # passes the band checks (majority of seeds)
+    dependence: float | None
+    complexity: float | None
+    seeds: dict[int, float]  # seed -> score (mean over folds)
+    median_seed: int | None
+    failure: str | None = None  # why the band check failed (the median seed's first failure)
+    status: str = "ok"  # ok | diverged | error
+    message: str | None = None
+    fits: int = 0
+    seconds: float = 0.0
+
+    @property
+    def finite(self) -> bool:
+        return math.isfinite(self.score)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "score": self.score if self.finite else None,
+            "band_ok": self.ok,
+            "input_dependence": self.dependence,
+            "complexity": self.complexity,
+            "seeds": {str(k): (v if math.isfinite(v) else None) for k, v in self.seeds.items()},
+            "median_seed": self.median_seed,
+            "failure": self.failure,
+            "status": self.status,
+            "message": self.message,
+            "fits": self.fits,
+            "seconds": round(self.seconds, 3),
+        }
+
+
+def _median_seed(scores: dict[int, float]) -> tuple[float, int | None]:
+    """The median score over seeds and its seed (the upper median for an even count: never the better of two
+    draws; ties broken by the smaller seed)."""
+    if not scores:
+        return math.inf, None
+    ordered = sorted(scores.items(), key=lambda kv: (kv[1], kv[0]))
+    seed, value = ordered[len(ordered) // 2]
+    return value, seed
+
+
+def pooled(results: list[Any]) -> float:
+    """One validation NMSE (%) of several folds: their squared errors summed and divided by the variance of
+    every fold's measured validation output taken together (mean over outputs), as if the folds were one
+    validation split. A fold of small output variance then weighs by its error, not by its own variance (per
+    fold NMSEs of a slow system can be huge on a quiet block). One result: its own score."""
+    if len(results) == 1:
+        return float(results[0].score)
+    moments = [r.moments for r in results]
+    if any(m is None for m in moments):
+        return float(np.mean([r.score for r in results]))
+    n = sum(m["n"] for m in moments)
+    sse = np.sum([m["sse"] for m in moments], axis=0)
+    mean = np.sum([m["sum"] for m in moments], axis=0) / n
+    var = np.sum([m["sumsq"] for m in moments], axis=0) / n - mean**2
+    var = np.maximum(var, np.finfo(float).tiny)
+    return float(np.mean(100.0 * sse / (n * var)))
+
+
+def summarize(results: list[Any]) -> Summary | None:
+    """Aggregate the fit results of one candidate at one level (several seeds, several folds)."""
+    fits = [r for r in results if r.kind == "fit"]
+    if not fits:
+        return None
+    by_seed: dict[int, list[Any]] = {}
+    for r in fits:
+        by_seed.setdefault(int(r.seed or 0), []).append(r)
+    scores: dict[int, float] = {}
+    ok_seeds: dict[int, bool] = {}
+    for seed, rs in sorted(by_seed.items()):
+        vals = [r.score for r in rs]
+        usable = all(v is not None and math.isfinite(v) and r.status == "ok" for v, r in zip(vals, rs))
+        scores[seed] = pooled(rs) if usable else math.inf
+        ok_seeds[seed] = all(bool(r.checks.get("ok", False)) for r in rs) and usable
+    score, median = _median_seed(scores)
+    ok = sum(ok_seeds.values()) * 2 >= len(ok_seeds) and (median is None or ok_seeds.get(median, False))
+    chosen = by_seed.get(median, fits) if median is not None else fits
+    deps = [r.dependence for r in fits if r.dependence is not None]
+    sizes = [r.complexity for r in fits if r.complexity is not None]
+    failure = next((failed_split(r.checks) for r in chosen if failed_split(r.checks)), None)
+    if failure is None and not ok:
+        failure = next((failed_split(r.checks) for r in fits if failed_split(r.checks)), None)
+    errors = [r for r in fits if r.status == "error"]
+    diverged = [r for r in fits if r.status == "diverged"]
+    status = "ok"
+    message = None
+    if not math.isfinite(score):
+        status = "error" if len(errors) * 2 >= len(fits) else "diverged"
+        bad = (errors or diverged or fits)[0]
+        message = bad.message
+    return Summary(
+        score=score,
+        ok=ok and math.isfinite(score),
+        dependence=float(np.median(deps)) if deps else None,
+        complexity=float(np.median(sizes)) if sizes else None,
+        seeds=scores,
+        median_seed=median,
+        failure=failure,
+        status=status,
+        message=message,
+        fits=len(fits),
+        seconds=float(sum(r.seconds for r in fits)),
+    )
+
+
+@dataclass
+class Choice:
+    key: str | None
+    notes: list[str] = field(default_factory=list)
+    verdicts: dict[str, str] = field(default_factory=dict)  # key -> why not chosen (or "chosen")
+    cautious: list[str] = field(default_factory=list)  # why the tie was widened
+
+
+def ignores_input(s: Summary) -> bool:
+    return s.dependence is not None and s.dependence < IGNORES_INPUT
+
+
+def choose(
+    summaries: dict[str, Summary],
+    labels: dict[str, str],
+    *,
+    short_validation: str | None = None,
+    excursion: float = 0.0,
+    reference: float | None = None,
+    uses_inputs: bool = True,
+) -> Choice:
+    """The winner among ``summaries`` (candidate key -> Summary at the deciding level), see the module
+    docstring. ``labels``: key -> a short description for the notes. ``short_validation``: why the
+    validation is short (None when it is not); ``excursion``: how far test inputs leave the training
+    range; ``reference``: the linear reference's score at the same level."""
+    out = Choice(None)
+    order = sorted(summaries, key=lambda k: (summaries[k].score, k))
+    for k in order:
+        s = summaries[k]
+        if not s.finite:
+            out.verdicts[k] = f"no usable fit ({s.status}: {s.message})" if s.message else f"no usable fit ({s.status})"
+        elif not s.ok:
+            out.verdicts[k] = f"rejected: {s.failure or 'leaves the output band'}"
+    eligible = [k for k in order if summaries[k].finite and summaries[k].ok]
+    if not eligible:
+        finite = [k for k in order if summaries[k].finite]
+        if not finite:
+            out.notes.append("no candidate gave a usable model")
+            return out
+        eligible = finite[:1]
+        out.notes.append(
+            "every candidate leaves the output band on some input (it diverges or extrapolates beyond plausible "
+            f"outputs); kept the best on validation anyway: {labels[eligible[0]]}"
+        )
+    best = summaries[eligible[0]].score
+    if uses_inputs and ignores_input(summaries[eligible[0]]):
+        users = [k for k in eligible if not ignores_input(summaries[k]) and summaries[k].score <= ABOUT_AS_WELL * best]
+        if users:
+            for k in eligible:
+                if ignores_input(summaries[k]):
+                    out.verdicts[k] = "set aside: ignores its input while a model that uses it validates about as well"
+            out.notes.append(
+                f"{labels[eligible[0]]} validated best but ignores its input; a model that uses the input "
+                f"validates within {100 * (ABOUT_AS_WELL - 1):.0f} % of it and is preferred"
+            )
+            eligible = [k for k in eligible if not ignores_input(summaries[k])]
+            best = summaries[eligible[0]].score
+    if short_validation:
+        out.cautious.append(short_validation)
+    if excursion > EXTRAPOLATION:
+        out.cautious.append(f"the test inputs leave the training range by {100 * excursion:.0f} % of its width")
+    if reference is not None and math.isfinite(reference) and not best <= REFERENCE_MARGIN * reference:
+        out.cautious.append(
+            f"no candidate beats the linear reference (validation NMSE {reference:.3g} %) by "
+            f"{100 * (1 - REFERENCE_MARGIN):.0f} %"
+        )
+    tie = CAUTIOUS_TIE if out.cautious else TIE
+    close = [k for k in eligible if summaries[k].score <= best * (1 + tie) or summaries[k].score == best]
+    simplest = min(
+        close,
+        key=lambda k: (
+            summaries[k].complexity if summaries[k].complexity is not None else math.inf,
+            summaries[k].score,
+            k,
+        ),
+    )
+    out.key = simplest
+    top = eligible[0]
+    if simplest != top:
+        why = "; ".join(out.cautious) if out.cautious else "the difference is within 1 %"
+        out.notes.append(
+            f"chose the simpler {labels[simplest]} (validation NMSE {summaries[simplest].score:.4g} %, size "
+            f"{summaries[simplest].complexity:.0f}) over {labels[top]} ({summaries[top].score:.4g} %, size "
+            f"{summaries[top].complexity:.0f}): {why}"
+        )
+    for k in eligible:
+        if k == simplest:
+            out.verdicts[k] = "chosen"
+        elif k not in out.verdicts:
+            out.verdicts[k] = "within the tie, larger" if k in close else "validates worse"
+    return out

@@ -1,0 +1,220 @@
+"""The data a search candidate is fitted and validated on: views of the spec's dataset.
+
+A view keeps the training and validation samples of the dataset and drops every other split (test sets),
+so a fit inside the search cannot read a test output: the search's checks on test *inputs* run separately
+(:mod:`.checks`). Three layouts:
+
+* ``full``: the spec's own training and validation splits;
+* ``screen``: the same, with the training split cut to its last ``samples`` samples (spread over the
+  training ranges in proportion to their lengths): candidates are ranked cheaply on part of the data
+  first, the survivors refitted on all of it (successive halving);
+* ``fold i of k``: blocked cross-validation for short data. The training and validation samples of every
+  recording (adjacent ranges merged into one span) are cut into ``k`` consecutive blocks; fold ``i``
+  validates on block ``i`` of every span and trains on the others. A validation block continues the free
+  run of its recording (as a validation split that follows the training split does); when the spec's
+  validation split has an initialization window, the block is a recording of its own with that window;
+* ``recording i of k``: leave one recording out, when the training and validation samples come from
+  :data:`MIN_RECORDINGS` or more recordings (runs at other operating conditions: other pressures, loads,
+  amplitudes). Fold ``i`` validates on all of recording ``i``'s training and validation samples, trained
+  on the other recordings': how well a model carries over to a recording it has not seen, which is what
+  a test recording asks and a validation split taken from the same recordings cannot tell.
+
+Every layout is a deterministic function of the dataset and its arguments.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from ..data.dataset import Dataset, Recording
+
+FIT_SPLITS = ("train", "validation")
+#: smallest validation block of a fold (samples)
+MIN_BLOCK = 20
+#: leave one recording out when the fitting data hold at least this many recordings
+MIN_RECORDINGS = 3
+
+
+@dataclass(frozen=True)
+class Layout:
+    kind: str = "full"  # "full" | "screen" | "fold" | "recording"
+    samples: int = 0  # screen: training samples kept
+    fold: int = 0
+    folds: int = 0
+
+    @property
+    def label(self) -> str:
+        if self.kind == "screen":
+            return f"screen ({self.samples} training samples)"
+        if self.kind == "fold":
+            return f"fold {self.fold + 1}/{self.folds}"
+        if self.kind == "recording":
+            return f"recording {self.fold + 1}/{self.folds} left out"
+        return "full"
+
+    def to_json(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def _windows(ds: Dataset) -> dict[str, int]:
+    return dict(getattr(ds, "windows", {}) or {})
+
+
+def _rebuild(ds: Dataset, recordings: list[Recording], ranges: dict[str, list[tuple[int, int, int]]]) -> Dataset:
+    """``ds`` with other recordings and ranges; split-keyed settings of dropped splits removed."""
+    changes: dict[str, Any] = {"recordings": recordings, "ranges": ranges}
+    for name in ("windows", "lead_in", "noise_std"):
+        value = getattr(ds, name, None)
+        if isinstance(value, dict):
+            changes[name] = {k: v for k, v in value.items() if k in ranges}
+    if isinstance(getattr(ds, "score_all", None), set):
+        changes["score_all"] = {k for k in ds.score_all if k in ranges}
+    return dataclasses.replace(ds, **changes)
+
+
+def _cut(rec: Recording, start: int, stop: int, name: str | None = None) -> Recording:
+    """Samples [start, stop) of a recording as a recording of its own (arrays shared, not copied)."""
+    out = dataclasses.replace(rec, u=rec.u[start:stop], y=rec.y[start:stop])
+    if name is not None:
+        out.name = name
+    if hasattr(out, "offset"):
+        out.offset = int(getattr(rec, "offset", 0)) + start
+    return out
+
+
+def fit_part(ds: Dataset) -> Dataset:
+    """Training and validation only, every recording cut after its last such sample."""
+    return screen(ds, None)
+
+
+def screen(ds: Dataset, samples: int | None) -> Dataset:
+    """The training split cut to its last ``samples`` samples (None: all of it), validation unchanged,
+    test sets dropped; recordings start at their first kept sample."""
+    train = ds.ranges.get("train", [])
+    total = sum(b - a for _, a, b in train)
+    keep: dict[tuple[int, int, int], int] = {}
+    if samples is None or samples >= total:
+        keep = {r: r[2] - r[1] for r in train}
+    else:
+        left = samples
+        for i, r in enumerate(train):
+            share = left if i == len(train) - 1 else int(round(samples * (r[2] - r[1]) / total))
+            share = min(share, r[2] - r[1], left)
+            keep[r] = share
+            left -= share
+    pieces: dict[str, list[tuple[int, int, int]]] = {"train": []}
+    for r in train:
+        if keep[r] > 0:
+            pieces["train"].append((r[0], r[2] - keep[r], r[2]))
+    if ds.ranges.get("validation"):
+        pieces["validation"] = list(ds.ranges["validation"])
+    return _compact(ds, pieces)
+
+
+def _compact(ds: Dataset, pieces: dict[str, list[tuple[int, int, int]]]) -> Dataset:
+    """Recordings that hold any of ``pieces``, each cut to [first piece start, last piece stop)."""
+    used = sorted({r for rows in pieces.values() for r, _, _ in rows})
+    index: dict[int, int] = {}
+    recordings: list[Any] = []
+    shift: dict[int, int] = {}
+    for r in used:
+        start = min(a for rows in pieces.values() for rr, a, _ in rows if rr == r)
+        stop = max(b for rows in pieces.values() for rr, _, b in rows if rr == r)
+        rec = ds.recordings[r]
+        index[r] = len(recordings)
+        shift[r] = start
+        recordings.append(rec if (start, stop) == (0, rec.n) else _cut(rec, start, stop))
+    ranges = {s: [(index[r], a - shift[r], b - shift[r]) for r, a, b in rows] for s, rows in pieces.items() if rows}
+    return _rebuild(ds, recordings, ranges)
+
+
+def spans(ds: Dataset) -> list[tuple[int, int, int]]:
+    """The training and validation ranges of every recording, adjacent ones merged, in recording order."""
+    rows = sorted((r, a, b) for s in FIT_SPLITS for r, a, b in ds.ranges.get(s, []))
+    merged: list[list[int]] = []
+    for r, a, b in rows:
+        if merged and merged[-1][0] == r and merged[-1][2] >= a:
+            merged[-1][2] = max(merged[-1][2], b)
+        else:
+            merged.append([r, a, b])
+    return [(r, a, b) for r, a, b in merged]
+
+
+def possible_folds(ds: Dataset, wanted: int, min_block: int = MIN_BLOCK) -> int:
+    """The number of folds (at most ``wanted``, at least 2, or 0 when even 2 do not fit) whose validation
+    blocks keep at least ``min_block`` scored samples after the transient and the validation window."""
+    window = _windows(ds).get("validation", 0)
+    longest = max((b - a for _, a, b in spans(ds)), default=0)
+    for k in range(wanted, 1, -1):
+        if longest // k - ds.transient - window >= min_block:
+            return k
+    return 0
+
+
+def fold(ds: Dataset, i: int, k: int) -> Dataset:
+    """Fold ``i`` of ``k`` (see the module docstring)."""
+    window = _windows(ds).get("validation", 0)
+    train: list[tuple[int, int, int]] = []
+    val: list[tuple[int, int, int]] = []
+    recordings = list(ds.recordings)
+    separate: list[tuple[int, int, int]] = []
+    for r, a, b in spans(ds):
+        n = b - a
+        lo, hi = a + (i * n) // k, a + ((i + 1) * n) // k
+        if lo > a:
+            train.append((r, a, lo))
+        if hi < b:
+            train.append((r, hi, b))
+        if window:
+            separate.append((r, lo, hi))
+        else:
+            val.append((r, lo, hi))
+    for r, lo, hi in separate:
+        rec = ds.recordings[r]
+        recordings.append(_cut(rec, lo, hi, f"validation:{rec.name}[{lo}:{hi}]"))
+        val.append((len(recordings) - 1, 0, hi - lo))
+    pieces = {"train": train, "validation": val}
+    out = _rebuild(ds, recordings, {s: rows for s, rows in pieces.items() if rows})
+    return _compact(out, {s: rows for s, rows in pieces.items() if rows})
+
+
+def _by_recording(ds: Dataset) -> list[list[tuple[int, int, int]]]:
+    """The spans of every recording that holds training or validation samples, in recording order."""
+    groups: dict[int, list[tuple[int, int, int]]] = {}
+    for r, a, b in spans(ds):
+        groups.setdefault(r, []).append((r, a, b))
+    return [groups[r] for r in sorted(groups)]
+
+
+def possible_recording_folds(ds: Dataset, min_recordings: int = MIN_RECORDINGS) -> int:
+    """The number of recordings to leave out in turn (0 when fewer than ``min_recordings`` hold fitting data,
+    or one of them is too short to validate ``MIN_BLOCK`` samples after the transient and the window)."""
+    groups = _by_recording(ds)
+    if len(groups) < min_recordings:
+        return 0
+    window = _windows(ds).get("validation", 0)
+    for g in groups:
+        if max(b - a for _, a, b in g) - ds.transient - window < MIN_BLOCK:
+            return 0
+    return len(groups)
+
+
+def recording_fold(ds: Dataset, i: int) -> Dataset:
+    """Recording ``i`` (of those with fitting data) as the validation, the others as training."""
+    groups = _by_recording(ds)
+    train = [s for j, g in enumerate(groups) if j != i for s in g]
+    val = list(groups[i])
+    return _compact(ds, {"train": train, "validation": val})
+
+
+def view(ds: Dataset, layout: Layout) -> Dataset:
+    """The dataset a candidate is fitted on under ``layout``."""
+    if layout.kind == "screen":
+        return screen(ds, layout.samples)
+    if layout.kind == "fold":
+        return fold(ds, layout.fold, layout.folds)
+    if layout.kind == "recording":
+        return recording_fold(ds, layout.fold)
+    return fit_part(ds)

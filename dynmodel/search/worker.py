@@ -1,0 +1,209 @@
+"""What a worker process does for the search: one :class:`Task` in, one :class:`TaskResult` out.
+
+Tasks run through :func:`dynmodel.batch.run_specs` with :func:`run_task` as the point function, so they
+use the sweep's executor seam (in-process, a local process pool, Dask), its per-worker data cache and its
+handling of dead workers. Three kinds:
+
+* ``fit``: fit the candidate spec on a view of the data (:mod:`.views`), score its free run on the view's
+  validation split, run the input-only checks (:mod:`.checks`) on every split's inputs, measure its input
+  dependence and size;
+* ``reference``: the training mean and the linear ARX / OE reference of :mod:`dynmodel.diagnose.reference`
+  on the view (training and validation samples only);
+* ``diagnose``: fit the spec on the view and run every detector of ``dynmodel diagnose`` on it; the
+  result holds the extensions they propose (the search's moves).
+
+Every task is a deterministic function of its fields: the result does not depend on the worker.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..batch import ModelArrays, PointResult, Variant, _one_line, cached_dataset
+from .views import Layout, view
+
+
+@dataclass(frozen=True)
+class Task(Variant):
+    """A candidate spec (``raw``, complete, with its seed) and where to fit it."""
+
+    kind: str = "fit"  # "fit" | "reference" | "diagnose"
+    layout: Layout = Layout()
+    #: the dataset itself when it is not in files (the Python API's arrays); None: load ``raw``'s data
+    dataset: Any = None
+    #: diagnose: extensions measured per round (the diagnosis' own limit)
+    moves: int = 6
+
+
+@dataclass
+class TaskResult(PointResult):
+    """A :class:`~dynmodel.batch.PointResult` with what the search decides on.
+
+    ``score``: free-run NMSE (%, mean over outputs) on the view's validation split (the training split
+    when the view has none); None when the run diverged there or the fit failed. ``checks``: the band
+    checks per split (:func:`.checks.band_checks`). ``dependence``: input dependence on the view's
+    validation split. ``complexity``: the fitted model's size. ``proposals``: diagnose tasks' moves as
+    ``{"cause", "summary", "patch"}``. ``reference``: reference tasks' figures.
+    ``moments``: sums over the view's validation samples that let folds be pooled into one score (``n``, per
+    output ``sse``, ``sum``, ``sumsq`` of the measured output)."""
+
+    kind: str = "fit"
+    layout: dict[str, Any] = field(default_factory=dict)
+    score: float | None = None
+    checks: dict[str, Any] = field(default_factory=dict)
+    dependence: float | None = None
+    complexity: float | None = None
+    proposals: list[dict[str, Any]] = field(default_factory=list)
+    reference: dict[str, Any] | None = None
+    selection: dict[str, Any] | None = None
+    moments: dict[str, Any] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        out = super().to_json()
+        out.update(
+            kind=self.kind,
+            layout=self.layout,
+            score=self.score,
+            checks=self.checks,
+            dependence=self.dependence,
+            complexity=self.complexity,
+        )
+        if self.proposals:
+            out["proposals"] = self.proposals
+        if self.reference is not None:
+            out["reference"] = self.reference
+        return out
+
+
+def _score(metrics: dict[str, Any]) -> float | None:
+    split = "validation" if "validation" in metrics else "train"
+    value = (metrics.get(split) or {}).get("nmse")
+    return None if value is None else float(value)
+
+
+def validation_moments(model, ds, runs) -> dict[str, Any] | None:
+    """Sums over the scored validation samples (the training split when there is none): the count, and per
+    output the squared free-run error, the measured output's sum and sum of squares; None after a divergence."""
+    import numpy as np
+
+    split = "validation" if ds.ranges.get("validation") else "train"
+    rows = ds.scored(split, model.warmup)
+    if not rows:
+        return None
+    y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
+    yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])
+    if not np.isfinite(yhat).all():
+        return None
+    return {
+        "n": int(len(y)),
+        "sse": ((y - yhat) ** 2).sum(axis=0).tolist(),
+        "sum": y.sum(axis=0).tolist(),
+        "sumsq": (y**2).sum(axis=0).tolist(),
+    }
+
+
+def _fit(task: Task, spec, ds, keep_model: bool, result: TaskResult) -> None:
+    from .. import engine, protocol
+    from ..usefulness import input_dependence
+    from .checks import band_checks, complexity
+
+    v = view(ds, task.layout)
+    model, runs = engine.fit_dataset(spec, v)
+    protocol.check_warmup(model.family, ds, spec.source)  # the test sets' windows too (the view has none)
+    result.metrics = model.metrics
+    result.score = _score(model.metrics)
+    bad = model.unstable
+    result.status = "diverged" if bad else "ok"
+    if bad:
+        result.message = f"the free run diverged on the {bad['split']} split at sample {bad['sample']}"
+    result.moments = None if bad else validation_moments(model, v, runs)
+    result.checks = band_checks(model, ds)
+    try:
+        result.dependence = None if bad else input_dependence(model, v, runs=runs)
+    except (ValueError, FloatingPointError):
+        result.dependence = None
+    result.complexity = complexity(model)
+    info = getattr(model.family, "selection_", None)
+    if isinstance(info, dict):
+        result.selection = {k: v for k, v in info.items() if k in ("lags", "degree", "terms", "method")}
+    if keep_model:
+        payload = ModelArrays.from_model(model)
+        payload.train_input = payload.train_input_lengths = payload.train_output = None  # the parent has them
+        result.model = payload
+
+
+def _reference(task: Task, ds, result: TaskResult) -> None:
+    from ..diagnose.reference import references
+
+    refs = references(view(ds, task.layout))
+    result.reference = refs.to_json()
+    result.status = "ok"
+
+
+def _diagnose(task: Task, spec, ds, result: TaskResult) -> None:
+    from .. import engine
+    from ..diagnose.detector import Settings
+    from ..diagnose.fitting import Fit, Fitter
+    from ..diagnose.runner import _candidates, detect
+
+    v = view(ds, task.layout)
+    fitter = Fitter(task.source, Path(task.base_dir))
+    fitter._data[fitter._data_key(spec)] = v  # detectors refit patched specs on the same view
+    t0 = time.perf_counter()
+    model, runs = engine.fit_dataset(spec, v)
+    fit = Fit(dict(task.raw), spec, model, runs, v, time.perf_counter() - t0)
+    findings, _ = detect(fit, Settings(reliability=False), fitter)
+    result.proposals = [
+        {"cause": cause, "summary": ext.summary, "patch": ext.patch} for cause, ext in _candidates(findings, task.moves)
+    ]
+    result.metrics = model.metrics
+    result.score = _score(model.metrics)
+    result.status = "ok"
+
+
+def run_task(task: Task, keep_model: bool = False) -> TaskResult:
+    """Run one task in this process; never raises for a failing fit (the result says what failed)."""
+    from ..executors import prepare_worker
+
+    prepare_worker()
+    t0, c0 = time.perf_counter(), time.thread_time()
+    result = TaskResult(
+        task.key,
+        "error",
+        kind=task.kind,
+        layout=task.layout.to_json(),
+        worker=f"{socket.gethostname()}:{os.getpid()}",
+    )
+    seed = task.raw.get("seed")
+    result.seed = int(seed) if isinstance(seed, int) else None
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            from ..spec import validate_spec
+            from ..threads import fit_threads
+
+            spec = validate_spec(dict(task.raw), task.source, Path(task.base_dir))
+            if task.dataset is not None:
+                ds, result.load_seconds = task.dataset, 0.0
+            else:
+                ds, result.load_seconds = cached_dataset(spec)
+            with fit_threads():
+                if task.kind == "reference":
+                    _reference(task, ds, result)
+                elif task.kind == "diagnose":
+                    _diagnose(task, spec, ds, result)
+                else:
+                    _fit(task, spec, ds, keep_model, result)
+    except Exception as exc:  # recorded, never raised: one candidate must not stop the search
+        result.status, result.message, result.score = "error", _one_line(exc), None
+    result.warnings = list(dict.fromkeys(str(w.message).split("\n")[0] for w in caught))
+    result.seconds = time.perf_counter() - t0
+    result.cpu_seconds = time.thread_time() - c0
+    return result

@@ -1,0 +1,144 @@
+"""The `esn` family's part in ``family: auto`` (the ``Family.search_space`` hook, docs/plugins.md).
+
+Starting candidates: the default internal network (leaky elements, input to half of them, the output
+clipped), a twice larger one, and, where the protocol lets a run start from measured outputs, the
+external mode with a tune-in inside that window (fed back, it models smooth, well-excited outputs best,
+thesis 5.3.2, and can diverge elsewhere: the search's band checks catch that). Every candidate is random:
+the search fits several seeds and judges the median. Neighbours of a good network: twice the elements,
+weaker and stronger input weights, slower leaky elements, a ridge readout over all states, the
+external mode for an internal network, and, for an internal network on data without delay lines, input
+delay lines in difference form u(t) - u(t - d) at d = 1, 2, 5, 10, 25, 50, 100 samples (at most a fiftieth of
+the training samples): an external memory of the input's recent displacements, what pre-sliding friction
+and other hysteresis need (thesis 6.2.3; a data-side extension, the data section patched).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from dynmodel.search.space import Candidate, Found, SearchContext
+
+NAME = "esn"
+#: seconds per training sample and element of a fit (streamed drive, FOS readout), and a fixed part
+_COST = 1.2e-7
+_FIXED = 0.1
+#: the shortest tune-in worth an external network
+_MIN_TUNE_IN = 5
+#: delays (samples) of the input delay lines offered around an internal network
+_DELAYS = (1, 2, 5, 10, 25, 50, 100)
+
+
+def _work(ctx: SearchContext, size: int, external: bool = False) -> float:
+    n = max(ctx.n_train, 1)
+    return _FIXED + _COST * n * size * (1.5 if external else 1.0) + 2e-6 * size * size
+
+
+def _cand(
+    ctx: SearchContext,
+    summary: str,
+    params: dict[str, Any],
+    size: int,
+    external: bool = False,
+    data: dict[str, Any] | None = None,
+) -> Candidate:
+    return Candidate(
+        family=NAME,
+        params=params,
+        summary=summary,
+        data=data or {},
+        work=_work(ctx, size, external),
+        stochastic=True,
+    )
+
+
+def _tune_in(ctx: SearchContext) -> int | None:
+    """The tune-in of an external network under the protocol (None: not allowed)."""
+    if ctx.max_warmup is None:
+        return 20
+    if ctx.max_warmup < _MIN_TUNE_IN:
+        return None
+    return int(min(20, ctx.max_warmup))
+
+
+def starting(ctx: SearchContext) -> list[Candidate]:
+    out = [_cand(ctx, "internal, 200 leaky elements (the default)", {}, 200)]
+    tune = _tune_in(ctx)
+    if tune is not None:
+        out.append(
+            _cand(
+                ctx,
+                f"external (the output fed back), 200 elements, tune-in {tune}",
+                {"mode": "external", "tune_in": tune},
+                200,
+                external=True,
+            )
+        )
+    big = 400 if ctx.n_train >= 2000 else 100
+    out.append(_cand(ctx, f"internal, {big} leaky elements", {"size": big}, big))
+    return out
+
+
+def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
+    p = dict(found.candidate.params)
+    size = int(p.get("size", 200))
+    external = p.get("mode") == "external"
+    mode = "external" if external else "internal"
+    out = []
+    if size * 2 <= 1600 and ctx.n_train >= 10 * size:
+        out.append(_cand(ctx, f"{mode}, {2 * size} elements", {**p, "size": 2 * size}, 2 * size, external))
+    scale = float(p.get("input_scale", 1.0))
+    for factor in (0.5, 2.0):
+        out.append(
+            _cand(
+                ctx,
+                f"{mode}, {size} elements, input weights x{factor:g} (input_scale {scale * factor:g})",
+                {**p, "input_scale": scale * factor},
+                size,
+                external,
+            )
+        )
+    out.append(
+        _cand(
+            ctx,
+            f"{mode}, {size} elements, slower leaky elements (relaxation 0.5 .. 0.995)",
+            {**p, "relaxation": [0.5, 0.995]},
+            size,
+            external,
+        )
+    )
+    out.append(
+        _cand(
+            ctx,
+            f"{mode}, {size} elements, ridge readout over every state",
+            {**p, "readout": {**(p.get("readout") or {}), "solver": "ridge"}},
+            size,
+            external,
+        )
+    )
+    delays = [d for d in _DELAYS if d <= ctx.n_train // 50]
+    if not external and len(delays) >= 2 and not ctx.data.get("delay_lines") and not found.candidate.data:
+        out.append(
+            _cand(
+                ctx,
+                f"{mode}, {size} elements, input delay lines u(t) - u(t - d), d = {', '.join(map(str, delays))}",
+                p,
+                size,
+                data={"delay_lines": delays, "delay_form": "difference"},
+            )
+        )
+    tune = _tune_in(ctx)
+    if not external and tune is not None:
+        out.append(
+            _cand(
+                ctx,
+                f"external, {size} elements, tune-in {tune}",
+                {**p, "mode": "external", "tune_in": tune},
+                size,
+                True,
+            )
+        )
+    return out
+
+
+def search_space(ctx: SearchContext, around: Found | None = None) -> list[Candidate]:
+    return starting(ctx) if around is None else neighbours(ctx, around)

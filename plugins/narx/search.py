@@ -1,0 +1,241 @@
+"""The `narx` family's part in ``family: auto`` (the ``Family.search_space`` hook, docs/plugins.md).
+
+The family's own default already searches the embedding: lags 1 .. L_max and degrees 1 .. 3 on one Gram
+matrix, the number of FOS terms chosen on the free-running validation error, the finalists re-estimated
+on the free run (``cost: mse_inf``). So the starting candidates vary what the default does not:
+
+* the default itself (the model most users want);
+* the same search with a small term budget (few terms extrapolate more gently where test inputs leave the
+  training range, EMPS);
+* a longer memory at degree 2 (inputs 0..L, outputs 1..L with L up to 12 while the pool stays small:
+  slow, smooth systems such as cascaded tanks);
+* a linear model with long lags (an ARX / output-error reference the nonlinear ones must beat).
+
+Every candidate is screened with least-squares weights (``cost: mse1``: FOS and the free-run stop,
+no free-running re-estimation) and re-estimated on the free run only when it survives. Neighbours of a
+good candidate (``around``) start from what its fit chose (lags L, degree d, k terms): two more lags, one
+more degree, half and twice the terms, the output clipped at the training range (a saturating sensor),
+ridge weights, and terms selected on the free-running error.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from dynmodel.search.space import Candidate, Found, SearchContext
+
+from .embedding import pool_size
+
+NAME = "narx"
+#: seconds per training sample and pool monomial of a screening fit (FOS on a Gram matrix, free-run stop)
+_SCREEN_COST = 1e-7
+#: seconds per training sample, term and free run of the free-running re-estimation
+_REFINE_COST = 2.5e-8
+
+
+def _model_inputs(ctx: SearchContext) -> list[str]:
+    return ctx.extension_context(NAME, {}).model_input_names
+
+
+def _table(ctx: SearchContext, L: int, first_input: int = 0) -> dict[str, list[dict[str, int]]]:
+    table = {u: [{"from": first_input, "to": L}] for u in _model_inputs(ctx)}
+    table.update({y: [{"from": 1, "to": L}] for y in ctx.output_names})
+    return table
+
+
+def _regressors(ctx: SearchContext, L: int) -> int:
+    return len(_model_inputs(ctx)) * (L + 1) + ctx.n_outputs * L
+
+
+def _initial(ctx: SearchContext, L: int) -> dict[str, Any]:
+    """``initial: zeros`` when the protocol lets a run start from fewer measured outputs than the lags."""
+    return {} if ctx.allows_warmup(L) else {"initial": "zeros"}
+
+
+def _work(ctx: SearchContext, pool: int, terms: int) -> tuple[float, float]:
+    """(full, screening) seconds of one fit on ctx.n_train samples."""
+    n = max(ctx.n_train, 1)
+    screen = 0.05 + _SCREEN_COST * n * pool * (1 + n / 50000)
+    refine = _REFINE_COST * n * terms * terms * 40
+    return screen + refine, screen
+
+
+def _max_lag(ctx: SearchContext, degree: int, pool: int, cap: int) -> int:
+    L = 1
+    for lag in range(cap, 0, -1):
+        if pool_size(_regressors(ctx, lag), degree, True) <= pool:
+            L = lag
+            break
+    if ctx.max_warmup is not None and ctx.max_warmup > 0:
+        L = min(L, ctx.max_warmup)
+    return max(L, 1)
+
+
+def _candidate(
+    ctx: SearchContext, summary: str, params: dict[str, Any], pool: int, terms: int, **extra: Any
+) -> Candidate:
+    full, screen = _work(ctx, pool, terms)
+    return Candidate(
+        family=NAME,
+        params=params,
+        summary=summary,
+        cost="mse_inf",
+        screen_cost="mse1",
+        work=full,
+        screen_work=screen,
+        stochastic=False,
+        **extra,
+    )
+
+
+def starting(ctx: SearchContext) -> list[Candidate]:
+    out = []
+    zeros = {} if ctx.max_warmup != 0 else {"initial": "zeros"}
+    pool6 = pool_size(_regressors(ctx, _max_lag(ctx, 3, 600, 6)), 3, True)
+    expected_terms = min(60, max(10, ctx.n_train // 400))
+    out.append(
+        _candidate(ctx, "lags and degree chosen on validation (the default)", dict(zeros), pool6, expected_terms)
+    )
+    cap = max(4, min(15, 3 * (len(_model_inputs(ctx)) + ctx.n_outputs) + 2))
+    if ctx.excursion > 0.05 or ctx.small:
+        out.append(
+            _candidate(
+                ctx,
+                f"lags and degree chosen on validation, at most {cap} terms (gentler beyond the training data)",
+                {"max_terms": cap, **zeros},
+                pool6,
+                cap,
+                complexity=float(cap),
+            )
+        )
+    L2 = _max_lag(ctx, 2, 300, 12)
+    pool2 = pool_size(_regressors(ctx, L2), 2, True)
+    out.append(
+        _candidate(
+            ctx,
+            f"degree 2, inputs 0..{L2} and outputs 1..{L2} (a longer memory)",
+            {"lags": _table(ctx, L2), "degree": 2, **_initial(ctx, L2)},
+            pool2,
+            min(40, pool2),
+        )
+    )
+    L1 = _max_lag(ctx, 1, 60, 20)
+    pool1 = pool_size(_regressors(ctx, L1), 1, True)
+    out.append(
+        _candidate(
+            ctx,
+            f"linear: inputs 0..{L1}, outputs 1..{L1}",
+            {"lags": _table(ctx, L1), "degree": 1, **_initial(ctx, L1)},
+            pool1,
+            pool1,
+            complexity=float(pool1),
+        )
+    )
+    if ctx.excursion <= 0.05 and not ctx.small:
+        out.append(
+            _candidate(
+                ctx,
+                f"lags and degree chosen on validation, at most {cap} terms",
+                {"max_terms": cap, **zeros},
+                pool6,
+                cap,
+                complexity=float(cap),
+            )
+        )
+    return out
+
+
+def _chosen(fitted: Any) -> tuple[dict[str, list[int]] | None, int | None, int | None]:
+    """(lag table, degree, terms per output) the fitted model chose; Nones when unknown."""
+    if fitted is None or not hasattr(fitted, "embedding_"):
+        return None, None, None
+    table: dict[str, list[int]] = {}
+    for r in fitted.embedding_.regressors:
+        table.setdefault(r.name, []).append(int(r.lag))
+    degree = None
+    try:
+        degree = int(max(int(e.sum()) for e in fitted.exponents_))
+    except (AttributeError, ValueError):
+        degree = None
+    sel = getattr(fitted, "selection_", {}) or {}
+    if sel.get("degree") is not None:
+        degree = int(sel["degree"])
+    terms = None
+    try:
+        terms = max(len(t) for t in fitted.terms_)
+    except (AttributeError, ValueError):
+        terms = None
+    return table, degree, terms
+
+
+def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
+    table, degree, terms = _chosen(found.fitted)
+    if table is None or degree is None:
+        return []
+    p = dict(found.candidate.params)
+    base = {k: v for k, v in p.items() if k in ("initial", "bounds", "ridge")}
+    L = max(max(v) for v in table.values())
+    compact = {k: [{"from": min(v), "to": max(v)}] for k, v in table.items()}
+    regs = sum(len(v) for v in table.values())
+    out = []
+
+    def add(summary: str, params: dict[str, Any], pool: int, k: int, complexity: float | None = None) -> None:
+        out.append(_candidate(ctx, summary, params, pool, k, complexity=complexity))
+
+    k = terms or 10
+    fixed = {"lags": compact, "degree": degree, **base}
+    pool = pool_size(regs, degree, True)
+    # more lags (the same degree), while the pool stays within 3000 monomials
+    longer = {name: [{"from": min(v), "to": max(v) + 2}] for name, v in table.items()}
+    pool_longer = pool_size(regs + 2 * len(table), degree, True)
+    if pool_longer <= 3000 and ctx.allows_warmup(L + 2):
+        add(f"degree {degree}, lags up to {L + 2} (two more)", {**fixed, "lags": longer}, pool_longer, k)
+    if degree < 4 and pool_size(regs, degree + 1, True) <= 3000:
+        add(
+            f"degree {degree + 1} on lags up to {L}",
+            {**fixed, "degree": degree + 1},
+            pool_size(regs, degree + 1, True),
+            k,
+        )
+    for m in sorted({max(2, k // 2), min(2 * k, pool)}):
+        if m != k:
+            add(
+                f"degree {degree}, lags up to {L}, {m} terms (was {k})",
+                {**fixed, "max_terms": m, "patience": None},
+                pool,
+                m,
+                complexity=float(m),
+            )
+    if p.get("bounds") != 0.0:
+        add(
+            f"degree {degree}, lags up to {L}, output clipped at the training range (a saturating output)",
+            {**fixed, "bounds": 0.0},
+            pool,
+            k,
+        )
+    if p.get("ridge") is None:
+        add(
+            f"degree {degree}, lags up to {L}, ridge weights (factor chosen on validation)",
+            {**fixed, "ridge": "auto"},
+            pool,
+            k,
+        )
+    if k <= 40:
+        full, screen = _work(ctx, pool, k)
+        out.append(
+            Candidate(
+                family=NAME,
+                params={**fixed, "selection": "free_run"},
+                summary=f"degree {degree}, lags up to {L}, terms selected on the free-running error",
+                cost="mse_inf",
+                work=max(2.0, k / 2) * full,  # every growth step re-estimates the weights on the free run
+                stochastic=False,
+            )
+        )
+    return out
+
+
+def search_space(ctx: SearchContext, around: Found | None = None) -> list[Candidate]:
+    if around is None:
+        return starting(ctx)
+    return neighbours(ctx, around)
