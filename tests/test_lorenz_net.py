@@ -76,6 +76,23 @@ def test_feed_forward_structure_follows_the_thesis():
     assert np.all(par.params >= np.maximum(lo, 1e-3)) and np.all(par.params[:, 3] <= 1.2)
 
 
+@pytest.mark.parametrize("strategy", ["parallel", "feed-forward"])
+def test_input_scale_is_the_gain_of_the_drive_and_changes_nothing_else(strategy):
+    """input_scale g: the input-driven elements see x1' = alpha sigma (g u - x1); the random draws (element
+    parameters, couplings) are those of g = 1, and driving with g u equals scaling the input by g."""
+    base = LorenzNetParams(size=12, strategy=strategy, layers=3, extra_links=6)
+    scaled = base.model_copy(update={"input_scale": 1.5})
+    a, b = (initial_state(p, 1, np.random.default_rng(7)) for p in (base, scaled))
+    np.testing.assert_array_equal(a.params, b.params)
+    np.testing.assert_array_equal(a.C, b.C)
+    np.testing.assert_array_equal(b.B, 1.5 * a.B)
+    assert np.all(b.B[b.layer == 0] == 1.5) and np.all(b.B[b.layer > 0] == 0)
+    u = np.random.default_rng(8).uniform(0.2, 6, (300, 1))
+    Xa, _ = simulate_network(a.params, a.C, a.B, 1.5 * u, 0.1, 2)
+    Xb, _ = simulate_network(b.params, b.C, b.B, u, 0.1, 2)
+    np.testing.assert_allclose(Xb, Xa, rtol=1e-12, atol=1e-12)
+
+
 def test_moves_keep_the_network_loop_free_and_parameters_positive():
     p = LorenzNetParams(size=16, strategy="feed-forward", layers=4, extra_links=10)
     rng = np.random.default_rng(4)
@@ -154,10 +171,9 @@ def test_a_validation_split_is_required():
         engine.fit(make_spec(raw))
 
 
-@pytest.mark.slow
-def test_thesis_4_4_2_feed_forward_beats_parallel():
-    """Both strategies over 5 runs on the rossler-cross task (README, 20 runs: parallel 16.1 %,
-    feed-forward about 10 %; the thesis's 1.9 % / 0.9 % are not reached)."""
+@pytest.fixture(scope="module")
+def thesis_4_4_2():
+    """Test NMSE (%) of both shipped specs over the family seeds 0 - 4."""
     results = {}
     for strategy in ("parallel", "feed-forward"):
         values = []
@@ -167,6 +183,26 @@ def test_thesis_4_4_2_feed_forward_beats_parallel():
             values.append(engine.fit(spec).metrics["test"]["nmse"])
         results[strategy] = np.array(values)
         print(f"\n{strategy}: mean {np.mean(values):.3f} std {np.std(values):.3f}")
+    return results
+
+
+@pytest.mark.slow
+def test_thesis_4_4_2_feed_forward_beats_parallel(thesis_4_4_2):
+    """Both strategies over 5 runs on the rossler-cross task (README / docs/ablations.md, 5 runs:
+    parallel 13.3 %, feed-forward 7.4 % with input_scale 1.5; the thesis's 1.9 % / 0.9 % are not reached)."""
+    results = thesis_4_4_2
     assert results["feed-forward"].mean() < results["parallel"].mean()
     assert np.median(results["feed-forward"]) < np.median(results["parallel"])
-    assert results["parallel"].mean() < 18.0 and results["feed-forward"].mean() < 12.0
+    assert results["parallel"].mean() < 15.0 and results["feed-forward"].mean() < 9.0
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="4.4.2 targets not reached: 32-element networks are limited by their 97 readout features on "
+    "this data (docs/ablations.md); measured parallel ~13 %, feed-forward ~7.5 %",
+)
+def test_thesis_4_4_2_reaches_the_thesis_figures(thesis_4_4_2):
+    """Thesis 4.4.2, mean test NMSE over runs: parallel 1.9 %, feed-forward 0.9 %."""
+    assert thesis_4_4_2["parallel"].mean() <= 1.9
+    assert thesis_4_4_2["feed-forward"].mean() <= 0.9

@@ -39,6 +39,12 @@ class LorenzNetParams(FamilyParams):
     alpha_range: tuple[float, float] = Field(
         (0.8, 1.2), description="initial alpha ~ U[low, high] (thesis: U[0.8, 1.2])"
     )
+    input_scale: float = Field(
+        1.0,
+        gt=0,
+        description="gain of the external input into the elements it drives (b_i of eq. 4.59; 1: the "
+        "drive u of eq. 4.52 as given). On the thesis's Rossler task 1.5 - 2 is better (README, ablation)",
+    )
     substeps: int = Field(4, ge=1, description="RK4 steps per sampling interval")
     time_scale: Optional[float] = Field(
         None,

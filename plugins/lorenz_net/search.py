@@ -57,7 +57,7 @@ def initial_state(p: LorenzNetParams, n_inputs: int, rng: np.random.Generator) -
             C[free[k]] = _coupling(rng)
     B = np.zeros((m, n_inputs))
     first = layer == 0
-    B[first] = (
+    B[first] = p.input_scale * (
         1.0 if n_inputs == 1 else np.array([[_coupling(rng) for _ in range(n_inputs)] for _ in range(int(first.sum()))])
     )
     return LorenzState(params, C, B, layer)
