@@ -56,6 +56,35 @@ def test_sliding_networks_beat_the_narx_model(tmp_path):
 
 
 # ----------------------------------------------------------------------------- 6.4.5 control
+def _p_control_and_perfect(params: dict, seed: int) -> dict:
+    """One 100 s tracking run as in 6.4.4: P-control to 50 s, then the perfect model's feed-forward."""
+    plant, _ = ctl.make_plant("friction-plant", params)
+    n, switch, skip = 100_000, 50_000, 20_000
+    task = plant.tracking_task(n, np.random.default_rng(seed))
+    run = task.start(switch, np.random.default_rng([seed, 1]))
+    pos, _ = run.resume(task.perfect_feedforward())
+    e = np.concatenate([run.position, pos]) - task.reference
+    out = ctl.criteria(task.reference, e, switch, skip)
+    out["max_over_rms"] = float(np.max(np.abs(e[skip:switch])) / np.sqrt(np.mean(e[skip:switch] ** 2)))
+    return out
+
+
+@pytest.mark.slow
+def test_645_default_plant_reproduces_the_published_p_control_and_perfect_model_figures():
+    """Friction system 1 as published (6.4.5): NMSE_P 0.897 %, MAX_P 0.280 (a P-error whose peaks are
+    2.95 times its rms), perfect model alpha 99.992 %, beta 99.65 %. The plant's reference is
+    calibrated on these figures (the thesis does not give its signal generator); the previous one
+    (std 5 cm over 0.05 - 0.5 Hz) gave MAX_P 0.14, a peak ratio 1.55 and a perfect beta of 94.6 %."""
+    runs = [_p_control_and_perfect({}, seed) for seed in range(5)]
+    mean = {k: float(np.mean([r[k] for r in runs])) for k in runs[0]}
+    assert 0.75 < mean["nmse_p"] < 1.0
+    assert 0.24 < mean["max_p"] < 0.32
+    assert 2.5 < mean["max_over_rms"] < 3.5
+    assert mean["alpha"] > 99.99 and mean["beta"] > 99.0
+    previous = [_p_control_and_perfect({"reference": {"std": 0.05, "band": [0.05, 0.5]}}, seed) for seed in range(3)]
+    assert np.mean([r["max_p"] for r in previous]) < 0.18 and np.mean([r["beta"] for r in previous]) < 97.0
+
+
 @pytest.fixture(scope="module")
 def control_645(tmp_path_factory):
     d = tmp_path_factory.mktemp("c645")
