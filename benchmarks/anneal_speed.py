@@ -24,7 +24,8 @@ from dynmodel.data import Preprocessor, load_dataset, training_data
 from dynmodel.engine import family_rng
 from dynmodel.spec import validate_spec
 from dynmodel_plugins.annealed_rnn import AnnealedRnn
-from dynmodel_plugins.annealed_rnn.search import Evaluator, NetState, make_moves
+from dynmodel_plugins.annealed_rnn.search import Evaluator, make_moves
+from dynmodel_plugins.esn.network import Network
 
 
 class NumpyEvaluator:
@@ -34,8 +35,8 @@ class NumpyEvaluator:
         self.data, self.p = data, p
         self.Yv = data.targets("validation")
 
-    def score(self, s: NetState) -> float:
-        g = s.gain(self.p.relaxation_gain)
+    def score(self, s: Network) -> float:
+        g = s.g
         B = np.hstack([s.B_in, s.B_back])
         feats = []
         for series in self.data.series:

@@ -8,6 +8,15 @@ Python API (mirrors the CLI)::
     dynmodel.save(model, "model.h5")
     model = dynmodel.load("model.h5")
     y = model.predict(u)                  # free run in physical units
+
+On arrays or DataFrames (families are scikit-learn style estimators)::
+
+    from dynmodel_plugins.narx import Narx
+    narx = Narx(degree=3, lags={"u": [0, 1, 2], "y": [1, 2]}).fit(u, y)   # validation: last 20 %
+    narx.predict(u_new, y_tune=y_new[: narx.warmup]); narx.score(u_new, y_new)   # R^2 of the free run
+    dynmodel.save(narx, "narx.h5")
+    model = dynmodel.fit("my-spec.yaml", data=(u, y))   # a spec's settings on your arrays
+    result = dynmodel.sweep(spec, {"model.params.size": [100, 200], "seed": {"range": [0, 5]}})
 """
 
 from __future__ import annotations
@@ -18,16 +27,38 @@ from .errors import DynmodelError  # noqa: E402
 from .spec import load_spec, validate_spec  # noqa: E402
 
 
-def fit(spec, progress=None):
-    """Fit the model described by ``spec`` (a loaded spec or a path to a YAML file)."""
-    from . import engine
+def fit(spec, data=None, progress=None):
+    """Fit the model described by ``spec`` (a loaded spec, a mapping or a path to a YAML file).
 
-    if not hasattr(spec, "model"):
+    ``data``: recordings given in Python instead of the spec's data source: ``(u, y)``, a DataFrame with
+    the spec's input and output columns, a list of these, or ``{"train": ..., "validation": ...,
+    "test": ...}`` (see :func:`dynmodel.api.fit_spec`). ``progress``: a callback ``(stage, fraction,
+    message)``, or True for progress on stderr."""
+    if data is not None:
+        from .api import fit_spec
+
+        return fit_spec(spec, data, progress)
+    from . import engine
+    from .api import progress_reporter
+
+    if isinstance(spec, dict):
+        spec = validate_spec(spec)
+    elif not hasattr(spec, "model"):
         spec = load_spec(spec)
-    return engine.fit(spec, progress or engine.no_progress)
+    with progress_reporter(progress) as report:
+        return engine.fit(spec, report)
+
+
+def sweep(spec, grid, executor=None, **options):
+    """Fit ``spec`` at every point of ``grid`` (dotted spec keys -> lists of values) and return a
+    :class:`dynmodel.sweeps.SweepResult` table; see :func:`dynmodel.sweeps.sweep` for the options."""
+    from .sweeps import sweep as run
+
+    return run(spec, grid, executor, **options)
 
 
 def save(model, path):
+    """Write a FittedModel, or a family fitted on arrays, to an HDF5 model file (atomically)."""
     from . import store
 
     return store.save(model, path)
@@ -39,4 +70,4 @@ def load(path):
     return store.load(path)
 
 
-__all__ = ["__version__", "DynmodelError", "load_spec", "validate_spec", "fit", "save", "load"]
+__all__ = ["__version__", "DynmodelError", "load_spec", "validate_spec", "fit", "sweep", "save", "load"]

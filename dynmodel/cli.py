@@ -1,5 +1,5 @@
-"""Command line: ``dynmodel fit | validate | predict | inspect | reliability-check | diagnose | control | plugins |
-schema | generate``.
+"""Command line: ``dynmodel fit | validate | predict | inspect | reliability-check | diagnose | sweep | control |
+plugins | schema | generate``.
 
 Tables go to stdout, progress to stderr, machine output to ``--json FILE``. A user's mistake
 gets one line on stderr and exit code 2 (1 when a check ran and failed, e.g. a diverging
@@ -21,11 +21,37 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
+from typer.core import TyperGroup
 
 from . import __version__
 from .errors import EXIT_INTERNAL, DynmodelError, FreeRunDiverged
 
+
+class _OneLineErrors(TyperGroup):
+    """Usage errors (a missing argument, a bad option value) as one line, like every other error."""
+
+    def main(self, *args: Any, standalone_mode: bool = True, **kwargs: Any) -> Any:
+        if not standalone_mode:
+            return super().main(*args, standalone_mode=False, **kwargs)
+        try:
+            rv = super().main(*args, standalone_mode=False, **kwargs)
+        except typer.TyperException as exc:  # click's usage errors, vendored by typer
+            if type(exc).__name__ == "NoArgsIsHelpError":
+                print(exc.format_message())
+                sys.exit(0)
+            ctx = getattr(exc, "ctx", None)
+            where = ctx.command_path if ctx is not None else "dynmodel"
+            message = " ".join(exc.format_message().split()).rstrip(".")
+            print(f"error: {where}: {message}. Fix: see `{where} --help`", file=sys.stderr)
+            sys.exit(getattr(exc, "exit_code", 2))
+        except typer.Abort:
+            print("error: aborted. Fix: rerun the command", file=sys.stderr)
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
 app = typer.Typer(
+    cls=_OneLineErrors,
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -53,29 +79,44 @@ def _main(
 
 
 def handled(fn: Callable) -> Callable:
-    """Turn DynmodelError into one stderr line and its exit code; other errors into exit 3."""
+    """Run a command: expected errors (see dynmodel.explain) become one stderr line and their exit
+    code, anything else (a bug) the internal-error line; warnings are shown once, after the
+    command succeeded (an error line stands alone)."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        try:
-            return fn(*args, **kwargs)
-        except (typer.Exit, typer.Abort, KeyboardInterrupt):
-            raise
-        except DynmodelError as exc:
-            if _state["debug"]:
+        import warnings
+
+        from .explain import explain, internal_error_line
+
+        with warnings.catch_warnings(record=True) as caught:  # the default filters stay in force
+            try:
+                result = fn(*args, **kwargs)
+            except (typer.Exit, typer.Abort, SystemExit):
+                _show_warnings(caught)
                 raise
-            err.print(f"error: {exc.line()}", markup=False)
-            raise typer.Exit(exc.exit_code) from None
-        except Exception as exc:  # a bug, not the user's fault
-            if _state["debug"]:
-                raise
-            err.print(
-                f"internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback and report it)",
-                markup=False,
-            )
-            raise typer.Exit(EXIT_INTERNAL) from None
+            except BaseException as exc:  # noqa: BLE001 - the one place that explains failures
+                mapped = explain(exc)
+                if _state["debug"] and not isinstance(exc, KeyboardInterrupt):
+                    raise
+                if mapped is None:
+                    err.print(internal_error_line(exc), markup=False)
+                    raise typer.Exit(EXIT_INTERNAL) from None
+                err.print(f"error: {mapped.line()}", markup=False)
+                raise typer.Exit(mapped.exit_code) from None
+        _show_warnings(caught)
+        return result
 
     return wrapper
+
+
+def _show_warnings(caught) -> None:
+    shown: set[str] = set()
+    for w in caught:
+        text = " ".join(str(w.message).split())
+        if text not in shown:
+            shown.add(text)
+            err.print(f"warning: {text}", markup=False)
 
 
 def _fmt(v: Any, digits: int = 4) -> str:
@@ -88,11 +129,13 @@ def _fmt(v: Any, digits: int = 4) -> str:
 
 def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
     table = Table(title=title, title_justify="left")
-    table.add_column("split")
+    table.add_column("split", min_width=max((len(k) for k in metrics), default=5))
     table.add_column("samples", justify="right")
     shown = [k for k in ("nmse", "max", "rmse", "fit") if k in ("nmse", "max") or any(k in m for m in metrics.values())]
+    units = {m.get("rmse_units") for m in metrics.values()}
+    rmse = f"RMSE ({units.pop()})" if len(units) == 1 and None not in units else "RMSE"
     for k in shown:
-        table.add_column({"nmse": "NMSE %", "max": "MAX", "rmse": "RMSE", "fit": "fit %"}[k], justify="right")
+        table.add_column({"nmse": "NMSE %", "max": "MAX", "rmse": rmse, "fit": "fit %"}[k], justify="right")
     has_one = any("nmse_1" in m for m in metrics.values())
     if has_one:
         table.add_column("NMSE one-step %", justify="right")
@@ -110,20 +153,15 @@ def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
 
 
 def _write_json(path: Path, payload: dict[str, Any]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(payload, indent=2) + "\n")
+    from .paths import write_text
 
-
-def _warnings_to_stderr():
-    import warnings
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        err.print(f"warning: {message}", markup=False)
-
-    warnings.showwarning = show
+    write_text(path, json.dumps(payload, indent=2) + "\n")
 
 
 # ------------------------------------------------------------------------------ fit
+_FORCE = typer.Option(False, "--force", help="replace an existing file that is not a previous output of this kind")
+
+
 @app.command()
 @handled
 def fit(
@@ -131,29 +169,41 @@ def fit(
     out_path: Optional[Path] = typer.Option(None, "--out", help="model file (overrides the spec's output)"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write metrics and model path as JSON"),
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of measured vs free-running output"),
-    seed: Optional[int] = typer.Option(None, "--seed", help="override the spec's seed"),
+    seed: Optional[int] = typer.Option(None, "--seed", min=0, help="override the spec's seed"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    force: bool = _FORCE,
 ) -> None:
     """Fit the spec's model, evaluate free runs on every split, save it to HDF5."""
     from . import engine, store
     from .data import load_dataset
+    from .paths import check_outputs, spec_inputs
     from .progress import Reporter
     from .spec import load_spec
+    from .usefulness import assess, stability_fix, summary_line
 
-    _warnings_to_stderr()
     t0 = time.perf_counter()
     s = load_spec(spec)
     if seed is not None:
         s.seed = seed
+    target = out_path if out_path is not None else s.output_path()
+    check_outputs(
+        [
+            (target, "model", "--out" if out_path is not None else "output:"),
+            (json_path, "json", "--json"),
+            (plot, "plot", "--plot"),
+        ],
+        spec_inputs(s, spec),
+        force,
+    )
     with Reporter(enabled=not quiet) as progress:
         progress("data", None, "loading")
         ds = load_dataset(s)
         model, runs = engine.fit_dataset(s, ds, progress)
-        target = out_path if out_path is not None else s.output_path()
         model.spec["output"] = str(Path(target).resolve())
+        notes = assess(model, ds, runs)
         store.save(model, target)
     elapsed = time.perf_counter() - t0
-    recs = ", ".join(dict.fromkeys(r.name.split(":")[-1] for r in ds.recordings))
+    recs = ", ".join(ds.source_names())
     out.print(f"[bold]{s.name}[/]: {s.model.family} fitted with cost {s.cost} on {recs} in {elapsed:.1f} s")
     out.print(metrics_table(model.metrics))
     if s.data.noise is not None and s.data.noise.std > 0:
@@ -165,7 +215,14 @@ def fit(
         out.print(f"note: {note}", markup=False, soft_wrap=True)
     out.print(f"model written to {Path(target).resolve()}")
     if json_path:
-        _write_json(json_path, {"metrics": model.metrics, "model": str(Path(target).resolve())})
+        _write_json(
+            json_path,
+            {
+                "metrics": model.metrics,
+                "model": str(Path(target).resolve()),
+                "assessment": [n.to_json() for n in notes],
+            },
+        )
     if plot:
         _plot_fit(plot, ds, runs, model, s.name)
         out.print(f"plot written to {plot}")
@@ -175,16 +232,19 @@ def fit(
             f"the free run diverged on the {bad['split']} split at sample {bad['sample']} "
             f"(t = {bad['time']:.6g}) of recording '{bad['recording']}'",
             str(spec),
-            f"{model.family.stability_hint}; the model was saved for inspection",
+            f"{stability_fix(model.family.stability_hint, s.cost)}; the model was saved for inspection",
             sample=bad["sample"],
         )
+    line = summary_line(notes, str(spec), s.cost)
+    if line:
+        err.print(f"warning: {line}", markup=False, soft_wrap=True)
 
 
 def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
     from .plots import measured_vs_simulated
 
     # the recording holding the test split (else the first), whole, with the splits shaded
-    rec = next((r for r, _, _ in ds.ranges.get("test", [])), 0)
+    rec = next((r for s in ds.test_splits() for r, _, _ in ds.ranges[s]), 0)
     r = ds.recordings[rec]
     t = np.arange(r.n) * ds.sampling_time
     spans = [
@@ -194,7 +254,10 @@ def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
         if rr == rec
     ]
     scored = [
-        a for split in ("test", "validation", "train") for rr, a, _ in ds.scored(split, model.warmup) if rr == rec
+        a
+        for split in (*ds.test_splits(), "validation", "train")
+        for rr, a, _ in ds.scored(split, model.warmup)
+        if rr == rec
     ]
     start = scored[0] if scored else 0
     measured_vs_simulated(
@@ -217,15 +280,18 @@ def validate(
     spec: Path = typer.Argument(..., help="YAML spec"),
     resolved: bool = typer.Option(False, "--resolved", help="print the full resolved spec as YAML"),
 ) -> None:
-    """Check a spec and its data without fitting: keys, files, columns, NaN, split sizes."""
+    """Check a spec and its data without fitting: keys, files, columns, values, split sizes, the output path."""
     import yaml
 
     from .data import describe, load_dataset
+    from .engine import check_plan
+    from .paths import check_outputs, spec_inputs
     from .spec import load_spec
 
-    _warnings_to_stderr()
     s = load_spec(spec)
+    check_outputs([(s.output_path(), "model", "output:")], spec_inputs(s, spec))  # what `fit` would refuse
     ds = load_dataset(s)
+    check_plan(s, ds)
     out.print(
         f"[green]ok[/]: {spec} ({s.model.family}, cost {s.cost}, {len(ds.recordings)} recording(s), "
         f"inputs {ds.input_names}, outputs {ds.output_names}, sampling time {ds.sampling_time:g})"
@@ -241,84 +307,70 @@ def validate(
 
 
 # ------------------------------------------------------------------------------ predict
-def _read_table(path: Path, names: list[str]) -> dict[str, np.ndarray]:
-    from .data.readers import read_columns
-
-    return read_columns(path, names)
-
-
 @app.command()
 @handled
 def predict(
     model_path: Path = typer.Argument(..., metavar="MODEL", help="model file written by dynmodel fit"),
     input_path: Path = typer.Option(..., "--input", help="file with the model's input columns"),
-    out_path: Optional[Path] = typer.Option(None, "--out", help="CSV for the predictions (default: stdout)"),
+    out_path: Optional[Path] = typer.Option(None, "--out", help="CSV for the predictions (default or '-': stdout)"),
     tune_in: Optional[Path] = typer.Option(None, "--tune-in", help="file with measured output columns for the tune-in"),
     plot: Optional[Path] = typer.Option(
         None, "--plot", help="PNG of the prediction (and the measured output when present)"
     ),
+    skip_tune_in: bool = typer.Option(
+        False,
+        "--skip-tune-in",
+        help="leave out the tune-in rows (by default they hold the measured outputs the model was fed, "
+        "marked 1 in a 'measured' column)",
+    ),
+    force: bool = _FORCE,
 ) -> None:
-    """Replay a saved model (free run) on a new input series."""
-    from . import store
-    from .data.readers import read_columns
+    """Replay a saved model (free run) on a new input series; the table keeps the input file's time column."""
+    from . import prediction, store
     from .errors import DataError
+    from .paths import check_outputs
 
+    if out_path is not None and str(out_path) == "-":
+        out_path = None
     model = store.load(model_path)
-    cols = read_columns(input_path, model.input_names)
-    u = np.column_stack([cols[n] for n in model.input_names])
-    if not np.isfinite(u).all():
-        row = int(np.flatnonzero(~np.isfinite(u).all(axis=1))[0])
-        raise DataError(f"the input has NaN or inf at sample {row}", str(input_path), "fill or remove those samples")
-    y_meas = None
-    need = model.warmup
-    if need:
-        source = tune_in or input_path
-        try:
-            yc = read_columns(source, model.output_names)
-        except DataError:
-            outs = ", ".join(f"'{n}'" for n in model.output_names)
-            raise DataError(
-                f"this model tunes in on the first {need} measured samples of output column(s) {outs}, "
-                f"and {source.name} has none",
-                str(source),
-                f"add column(s) {outs} to {input_path.name} (only the first {need} rows are read) or pass "
-                "--tune-in FILE",
-            ) from None
-        y_meas = np.column_stack([yc[n] for n in model.output_names])
-        if len(y_meas) < need or not np.isfinite(y_meas[:need]).all():
-            raise DataError(
-                f"the tune-in needs {need} finite measured output samples, found "
-                f"{int(np.isfinite(y_meas[:need]).all(axis=1).sum())}",
-                str(source),
-                f"provide the first {need} measured values of {model.output_names}",
-            )
+    inp = prediction.read_inputs(model, input_path, tune_in)
+    columns = prediction.header(model, inp.time_name, skip_tune_in)
+    check_outputs(
+        [(out_path, "csv", "--out"), (plot, "plot", "--plot")],
+        {"model": model_path, "input file": input_path, "tune-in file": tune_in},
+        force,
+        columns={"--out": [prediction.header(model, inp.time_name, skip) for skip in (False, True)]},
+    )
     try:
-        run = model.run(u, y_meas)
+        run = model.run(inp.u, inp.y_tune)
     except ValueError as exc:
-        raise DataError(str(exc), str(input_path), "check the input file") from exc
-    t = np.arange(len(u)) * model.sampling_time
-    table = np.column_stack([t, run.y])
-    header = ",".join(["t"] + list(model.output_names))
-    if out_path is None:
-        np.savetxt(sys.stdout, table, delimiter=",", header=header, comments="", fmt="%.10g")
-    else:
-        out_path.parent.mkdir(parents=True, exist_ok=True)
-        np.savetxt(out_path, table, delimiter=",", header=header, comments="", fmt="%.10g")
-        err.print(f"{len(u)} predictions written to {out_path}", markup=False)
+        raise DataError(str(exc), str(input_path), "check the input file") from None
+    rows = prediction.table(model, inp, run, skip_tune_in)
+    prediction.write_table(out_path, columns, rows)
+    if out_path is not None:
+        skipped = f" (the {model.warmup} tune-in rows left out)" if skip_tune_in and model.warmup else ""
+        marked = f" (the first {model.warmup} rows are the measured tune-in, marked in column 'measured')"
+        err.print(
+            f"{len(rows)} predictions written to {out_path}{skipped or (marked if model.warmup else '')}",
+            markup=False,
+        )
     if plot:
         from .plots import measured_vs_simulated
 
-        try:
-            yc = read_columns(input_path, model.output_names)
-            y_true = np.column_stack([yc[n] for n in model.output_names])
-        except DataError:
-            y_true = np.full_like(run.y, np.nan)
+        y_true = inp.y_measured if inp.y_measured is not None else np.full_like(run.y, np.nan)
         measured_vs_simulated(
-            plot, t, y_true, run.y, model.output_names, f"{model_path.name} on {input_path.name}", tune_in=model.warmup
+            plot,
+            inp.time,
+            y_true,
+            run.y,
+            model.output_names,
+            f"{model_path.name} on {input_path.name}",
+            tune_in=model.warmup,
         )
+        err.print(f"plot written to {plot}", markup=False)
     if run.diverged_at is not None:
         raise FreeRunDiverged(
-            f"the free run diverged at sample {run.diverged_at} (t = {run.diverged_at * model.sampling_time:.6g}); "
+            f"the free run diverged at sample {run.diverged_at} ({inp.time_name} = {inp.time[run.diverged_at]:.6g}); "
             "later predictions are NaN",
             str(input_path),
             "check that the input stays within the training range",
@@ -332,12 +384,16 @@ def inspect(
     model_path: Path = typer.Argument(..., metavar="MODEL"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write the summary as JSON"),
     spec: bool = typer.Option(False, "--spec", help="also print the resolved spec"),
+    force: bool = _FORCE,
 ) -> None:
     """Summarize a saved model: family, data, preprocessing, metrics, provenance."""
     import yaml
 
     from . import store
+    from .paths import check_outputs
+    from .usefulness import assess, summary_line
 
+    check_outputs([(json_path, "json", "--json")], {"model": model_path}, force)
     model = store.load(model_path)
     pre = model.preprocessor
     summary = {
@@ -379,6 +435,9 @@ def inspect(
             facts.add_row(key, escape(str(prov[key])))
     out.print(facts)
     out.print(metrics_table(model.metrics, "free-run metrics"))
+    line = summary_line(assess(model), model.spec.get("spec_file") or model.provenance.get("spec_file"))
+    if line:
+        out.print(f"note: {line}", markup=False, soft_wrap=True)
     if spec:
         print(yaml.safe_dump(model.spec, sort_keys=False))
     if json_path:
@@ -443,8 +502,9 @@ def reliability_check(
         min=0.0,
         help="replicas count as converged within this fraction of the state-space diagonal",
     ),
-    seed: int = typer.Option(0, "--seed", help="seed of initial states and noise inputs"),
+    seed: int = typer.Option(0, "--seed", min=0, help="seed of initial states and noise inputs"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    force: bool = _FORCE,
 ) -> None:
     """Does the model forget its initial state? Replica test, Lyapunov exponents, constant-input scan
     (thesis 4.4.1, 5.3.1); exit 0 reliable, 1 unreliable or inconclusive."""
@@ -463,6 +523,9 @@ def reliability_check(
         )
     if param and system is None:
         raise DynmodelError("--param sets parameters of a --system test system", "--param", "drop it for model files")
+    from .paths import check_outputs
+
+    check_outputs([(json_path, "json", "--json")], {"model": model_path}, force)
     settings = Settings(
         replicas=replicas,
         scan_replicas=scan_replicas,
@@ -472,7 +535,6 @@ def reliability_check(
         tolerance=tolerance,
         sines=tuple(_parse_sine(x) for x in sine),
     )
-    _warnings_to_stderr()
     with Reporter(enabled=not quiet) as progress:
         if system is not None:
             cls = registry.system(system)
@@ -515,7 +577,9 @@ def diagnose_cmd(
         help="report folder (default: <name>-diagnosis next to the spec): index.md, figures, extended.yaml",
     ),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write the summary as JSON"),
-    rounds: int = typer.Option(1, "--rounds", min=1, help="diagnose and extend again until adequate or no gain"),
+    rounds: int = typer.Option(
+        3, "--rounds", min=1, help="rounds of diagnose, extend, refit (stops earlier when adequate or without gain)"
+    ),
     seeds: int = typer.Option(3, "--seeds", min=1, help="fits per spec for random families (gain uncertainty)"),
     alpha: float = typer.Option(0.001, "--alpha", min=1e-12, max=0.5, help="significance level of each detector"),
     min_share: float = typer.Option(
@@ -525,20 +589,30 @@ def diagnose_cmd(
         0.001, "--min-effect", min=0.0, help="... and for this fraction of the output variance"
     ),
     max_lag: Optional[int] = typer.Option(None, "--max-lag", min=1, help="largest lag searched for delays (samples)"),
-    candidates: int = typer.Option(4, "--candidates", min=1, help="extensions measured per round"),
-    seed: int = typer.Option(0, "--seed", help="seed of the gain's block bootstrap"),
+    candidates: int = typer.Option(6, "--candidates", min=1, help="extensions measured per round"),
+    seed: int = typer.Option(0, "--seed", min=0, help="seed of the gain's block bootstrap"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    force: bool = _FORCE,
 ) -> None:
     """Show what the model's free run gets wrong, name the cause, extend the model and measure the gain
     on the held-out test split (exit 0 when the diagnosis ran, adequate or not)."""
     from .diagnose import Settings, diagnose
     from .diagnose.report import write_extended, write_json, write_report
+    from .paths import check_outputs, safe_name, spec_inputs
     from .progress import Reporter
-    from .spec import load_spec, parse_yaml
+    from .spec import load_spec, parse_yaml, read_spec_text
 
-    _warnings_to_stderr()
     s = load_spec(spec)  # one-line errors for a bad spec before any work
-    raw = parse_yaml(spec.read_text(encoding="utf-8"), str(spec))
+    folder = report if report is not None else spec.resolve().parent / f"{safe_name(s.name)}-diagnosis"
+    check_outputs(
+        [
+            (folder, "report", "--report"),
+            (json_path, "json", "--json"),
+        ],
+        spec_inputs(s, spec),
+        force,
+    )
+    raw = parse_yaml(read_spec_text(spec), str(spec))
     raw.setdefault("name", spec.stem)
     settings = Settings(
         alpha=alpha,
@@ -552,7 +626,6 @@ def diagnose_cmd(
     )
     with Reporter(enabled=not quiet) as progress:
         result = diagnose(raw, str(spec), spec.resolve().parent, settings, progress)
-        folder = report if report is not None else spec.resolve().parent / f"{s.name}-diagnosis"
         progress("report", None, str(folder))
         index = write_report(result, folder)
         extended = write_extended(result, folder)
@@ -568,57 +641,83 @@ def diagnose_cmd(
 
 
 def _print_diagnosis(result) -> None:
-    base = result.baseline
-    out.print(
-        f"[bold]{result.name}[/]: {base.spec.model.family} (cost {base.spec.cost}) diagnosed in "
-        f"{result.seconds:.1f} s; model memory {result.rounds[0].memory} samples"
-    )
-    out.print(metrics_table(base.metrics, "baseline free run"))
-    table = Table(
-        title="checks (significant first, by score: share of the residual's mean square)", title_justify="left"
-    )
-    for col, kw in (("cause", {}), ("significant", {}), ("score", {"justify": "right"}), ("p", {"justify": "right"})):
-        table.add_column(col, **kw)
-    for f in result.checks:
-        p = f.evidence.get("p_value")
-        table.add_row(
-            f.cause,
-            "yes" if f.significant else "",
-            f"{f.score:.3g}",
-            "-" if p is None else ("<1e-16" if p < 1e-16 else f"{p:.2g}"),
-        )
-    out.print(table)
-    if not result.findings:
-        out.print("[green]adequate[/]: no cause is significant; nothing to extend")
-        return
-    for i, f in enumerate(result.findings, 1):
-        out.print(f"{i}. [bold]{f.cause}[/]: {escape(f.summary)}")
-    top = result.findings[0]
-    out.print(f"named cause: [bold]{top.cause}[/]")
-    for rnd in result.rounds:
-        if rnd.chosen is not None:
-            out.print(f"round {rnd.index}: {escape(rnd.chosen.extension.summary)}; {rnd.outcome}")
-        elif rnd.outcome:
-            out.print(f"round {rnd.index}: {rnd.outcome}")
-    g = result.gain
-    if g:
-        before = g.get("test_nmse_before")
-        after = g.get("test_nmse_after")
-        red = g.get("relative_reduction")
-        unc = g.get("uncertainty") or {}
-        unc = unc["per_output"][0] if "per_output" in unc else unc
-        rr = unc.get("relative_reduction") or {}
-        spread = f" ± {100 * rr['std']:.1f} %" if rr.get("std") is not None else ""
+    from .diagnose.console import print_diagnosis
 
-        def shown(v, diverged):
-            return "diverged" if diverged else f"{_fmt(v)} %"
+    print_diagnosis(result, out, metrics_table)
 
-        out.print(
-            f"test NMSE {shown(before, g.get('baseline_diverged_on_test'))} -> "
-            f"{shown(after, g.get('extended_diverged_on_test'))}"
-            + (f" (reduction {100 * red:.1f} %{spread})" if red is not None else "")
-            + f"; test MAX {_fmt(g.get('test_max_before'))} -> {_fmt(g.get('test_max_after'))}"
+
+# ------------------------------------------------------------------------------ sweep
+@app.command("sweep")
+@handled
+def sweep_cmd(
+    spec: Path = typer.Argument(..., help="YAML spec"),
+    grid: Path = typer.Option(..., "--grid", help="YAML grid: dotted spec keys and their values (docs/sweep.md)"),
+    workers: Optional[int] = typer.Option(
+        None, "--workers", min=1, help="local worker processes (default: one per core; 1 runs in-process)"
+    ),
+    scheduler: Optional[str] = typer.Option(
+        None, "--scheduler", help="Dask cluster: tcp://HOST:PORT, a scheduler JSON file, or local:N (N new workers)"
+    ),
+    out_dir: Optional[Path] = typer.Option(
+        None, "--out", help="output folder (default: <name>-sweep next to the spec)"
+    ),
+    keep: str = typer.Option("best", "--keep", help="models written to the folder: best, all or none"),
+    resume: bool = typer.Option(False, "--resume", help="continue the sweep in --out: run only unfinished points"),
+    json_path: Optional[Path] = typer.Option(None, "--json", help="write the results (as results.json) here too"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    force: bool = _FORCE,
+) -> None:
+    """Fit the spec at every point of a grid of settings, in parallel (local processes or Dask), and rank
+    the points by their validation free-run error."""
+    from .paths import check_outputs
+    from .progress import Reporter
+    from .sweeps import run as sweeps
+
+    folder = out_dir if out_dir is not None else sweeps.default_out(spec)
+    check_outputs([(json_path, "json", "--json")], {"spec": [spec], "grid": [grid]}, force)
+    try:
+        with Reporter(enabled=not quiet) as progress:
+            result = sweeps.sweep(
+                spec,
+                grid,
+                out=folder,
+                keep=keep,
+                resume=resume,
+                workers=workers,
+                scheduler=scheduler,
+                progress=progress,
+            )
+    except KeyboardInterrupt as exc:
+        done = getattr(exc, "result", None)
+        counts = (
+            f"{done.counts()['points'] - done.counts()['not_run']} of {done.counts()['points']} points"
+            if done
+            else "no point"
         )
+        err.print(
+            f"interrupted: {counts} finished, kept in {folder}; run the same command with --resume to finish",
+            markup=False,
+        )
+        raise typer.Exit(130) from None
+    _print_sweep(result, json_path)
+
+
+def _print_sweep(result, json_path: Optional[Path]) -> None:
+    from .sweeps.report import render
+
+    render(result, out)
+    for text, n in result.info.get("warnings", {}).items():
+        err.print(f"warning ({n} point{'s' if n > 1 else ''}): {text}", markup=False)
+    if json_path:
+        _write_json(json_path, result.to_json())
+    if result.best is None:
+        c = result.counts()
+        err.print(
+            f"error: no point finished with a stable free run ({c['diverged']} diverged, {c['error']} errors). "
+            "Fix: see the messages above",
+            markup=False,
+        )
+        raise typer.Exit(1)
 
 
 # ------------------------------------------------------------------------------ control
@@ -648,7 +747,7 @@ def control(
     duration: float = typer.Option(100.0, "--duration", min=0.0, help="length of a run (s)"),
     switch: float = typer.Option(50.0, "--switch", min=0.0, help="the feed-forward starts here (s)"),
     skip: float = typer.Option(20.0, "--skip", min=0.0, help="seconds not scored after the start and the switch"),
-    seed: int = typer.Option(0, "--seed", help="seed of the reference and the noise realizations"),
+    seed: int = typer.Option(0, "--seed", min=0, help="seed of the reference and the noise realizations"),
     hold: str = typer.Option("linear", "--hold", help="feed-forward between samples: linear or zero (constant)"),
     workers: int = typer.Option(0, "--workers", min=0, help="threads for the realizations (0: one per core)"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write every criterion and realization as JSON"),
@@ -656,6 +755,7 @@ def control(
         None, "--plot", help="PNG of the tracking error before and after the switch (fig. 6.25)"
     ),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    force: bool = _FORCE,
 ) -> None:
     """Feed-forward control (thesis 6.4): P-control of a plant, the model's force added from the switch on;
     NMSE / MAX of the tracking error before and after, alpha and beta, and the perfect model's limits."""
@@ -668,15 +768,21 @@ def control(
 
     if hold not in ("linear", "zero"):
         raise SpecError(f"--hold {hold} is not linear or zero", "--hold", "use --hold linear (default) or --hold zero")
-    _warnings_to_stderr()
+    from .paths import check_outputs
+
+    check_outputs(
+        [(json_path, "json", "--json"), (plot, "plot", "--plot")], {"model": model_path, "plant file": plant}, force
+    )
     t0 = time.perf_counter()
     model = store.load(model_path)
     described = None
     if plant is not None:
         if not plant.is_file():
             raise SpecError("plant description not found", str(plant), "check the path")
+        from .spec import read_spec_text
+
         try:
-            described = yaml.safe_load(plant.read_text(encoding="utf-8"))
+            described = yaml.safe_load(read_spec_text(plant))
         except yaml.YAMLError as exc:
             raise SpecError(f"malformed YAML: {str(exc).splitlines()[0]}", str(plant), "check the file") from None
         if not isinstance(described, dict):
@@ -748,6 +854,7 @@ def plugins() -> None:
     for group, loaded, title in [
         (registry.FAMILIES, registry.families(), "model families"),
         (registry.SOURCES, registry.sources(), "data generators"),
+        (registry.SOURCES, registry.benchmarks(), "benchmark sources (data: {benchmark: NAME, root: DIR})"),
         (registry.SYSTEMS, registry.systems(), "test systems for reliability-check --system"),
         (registry.DETECTORS, registry.detectors(), "detectors of dynmodel diagnose"),
     ]:
@@ -763,13 +870,20 @@ def plugins() -> None:
 
 @app.command()
 @handled
-def schema(out_path: Optional[Path] = typer.Option(None, "--out", help="write to a file instead of stdout")) -> None:
+def schema(
+    out_path: Optional[Path] = typer.Option(None, "--out", help="write to a file instead of stdout"),
+    force: bool = _FORCE,
+) -> None:
     """Print the JSON Schema of the spec (every installed family's and generator's parameters)."""
+    from .paths import check_outputs
     from .spec import spec_json_schema
 
+    check_outputs([(out_path, "json", "--out")], None, force)
     text = json.dumps(spec_json_schema(), indent=2)
     if out_path:
-        out_path.write_text(text + "\n")
+        from .paths import write_text
+
+        write_text(out_path, text + "\n")
     else:
         print(text)
 
@@ -779,7 +893,7 @@ def schema(out_path: Optional[Path] = typer.Option(None, "--out", help="write to
 def generate(
     generator: str = typer.Argument(..., help="generator name (see `dynmodel plugins`)"),
     n: int = typer.Option(10000, "--n", min=1, help="number of samples"),
-    seed: int = typer.Option(0, "--seed", help="seed of the realization"),
+    seed: int = typer.Option(0, "--seed", min=0, help="seed of the realization"),
     out_path: Path = typer.Option(..., "--out", help="CSV file to write"),
     param: list[str] = typer.Option([], "--param", "-p", help="generator parameter as key=value (repeatable)"),
     plot: Optional[Path] = typer.Option(
@@ -787,15 +901,19 @@ def generate(
         "--plot",
         help="PNG of the recording: signals against time and every output against the first input (hysteresis loops)",
     ),
+    force: bool = _FORCE,
 ) -> None:
     """Write a generated input/output recording as CSV (for trying file-based specs)."""
     import yaml
 
     from . import registry
     from .errors import SpecError
+    from .paths import check_outputs
     from .spec import validation_summary
 
     gen = registry.source(generator)
+    columns = ["t", *gen.input_names, *gen.output_names]
+    check_outputs([(out_path, "csv", "--out"), (plot, "plot", "--plot")], None, force)  # replaces a CSV with --force
     values: dict[str, Any] = {}
     for item in param:
         if "=" not in item:
@@ -812,7 +930,7 @@ def generate(
         ) from None
     u, y = gen.generate(params, n, np.random.default_rng(seed))
     t = np.arange(n) * gen.sampling_time(params)
-    header = ",".join(["t", *gen.input_names, *gen.output_names])
+    header = ",".join(columns)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     np.savetxt(out_path, np.column_stack([t, u, y]), delimiter=",", header=header, comments="", fmt="%.12g")
     err.print(f"{n} samples of {generator} (seed {seed}) written to {out_path}", markup=False)

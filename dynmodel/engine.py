@@ -8,12 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__, registry
+from . import __version__, protocol, registry
 from .data import Preprocessor, load_dataset, training_data
 from .data.dataset import Dataset
 from .errors import DynmodelError
-from .family import Progress, no_progress
+from .family import Family, Progress, no_progress
 from .model import FittedModel, Run, evaluate
+from .threads import fit_threads
 
 
 def family_rng(seed: int) -> np.random.Generator:
@@ -51,19 +52,45 @@ def preprocessor(spec, ds: Dataset) -> Preprocessor:
         raise DynmodelError(str(exc), f"{spec.source}: data", "correct data.derived_inputs") from None
 
 
+def check_plan(spec, ds: Dataset):
+    """The spec's family, unfitted, after checking it can be fitted and scored on ``ds`` (its
+    tune-in leaves scored samples in every split); one-line errors otherwise (``validate`` uses it)."""
+    from .data.checks import check_warmup
+
+    family_cls = registry.family(spec.model.family)
+    try:
+        family = family_cls(**spec.model.params.model_dump(mode="python"))
+    except ValueError as exc:
+        raise DynmodelError(str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params") from None
+    check_warmup(ds, family.warmup, spec.source)
+    protocol.check_warmup(family, ds, spec.source)  # before a long fit, where the parameters fix it
+    return family
+
+
 def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
     """Fit the spec's model on an already loaded dataset and evaluate it on every split."""
+    family = check_plan(spec, ds)
+    return fit_family(family, spec, ds, progress)
+
+
+def fit_family(family: Family, spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
+    """Fit a constructed ``family`` on ``ds`` with the spec's preprocessing, cost and seed, and evaluate
+    it on every split (the engine path of ``dynmodel fit`` and of ``Family.fit`` on arrays), with one BLAS
+    thread so that the result does not depend on the machine (see :mod:`dynmodel.threads`)."""
+    with fit_threads():
+        return _fit_family(family, spec, ds, progress)
+
+
+def _fit_family(family: Family, spec, ds: Dataset, progress: Progress) -> tuple[FittedModel, list[Run]]:
     pre = preprocessor(spec, ds)
     td = training_data(ds, pre)
-    family_cls = registry.family(spec.model.family)
-    params = spec.model.params.model_dump(mode="python")
     try:
-        family = family_cls(**params)
         family.fit(td, spec.cost, family_rng(spec.seed), progress)
     except ValueError as exc:
         raise DynmodelError(
             str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
         ) from exc
+    protocol.check_warmup(family, ds, spec.source)
     train_u, lengths = ds.concat_inputs("train")
     model = FittedModel(
         family,
@@ -76,7 +103,8 @@ def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[Fi
         train_output=ds.concat_outputs("train"),
     )
     progress("evaluate", None, "free runs over every recording")
-    model.metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
+    metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
+    model.metrics = protocol.report(metrics, ds, protocol.units_of(spec, ds))
     return model, runs
 
 

@@ -53,3 +53,17 @@ class FreeRunDiverged(DynmodelError):
     def __init__(self, what: str, where: str | None = None, fix: str | None = None, sample: int | None = None):
         self.sample = sample
         super().__init__(what, where, fix)
+
+
+class ParameterError(DynmodelError, ValueError):
+    """An unknown or invalid family parameter given in Python (a ValueError, as scikit-learn expects)."""
+
+
+class OutputError(DynmodelError):
+    """An output path that cannot be written, or whose file must not be replaced."""
+
+
+class Interrupted(DynmodelError):
+    """The user stopped the command (Ctrl-C)."""
+
+    exit_code = 130

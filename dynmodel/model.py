@@ -8,10 +8,26 @@ from typing import Any
 
 import numpy as np
 
+from .columns import is_pandas, is_recording_list, like_input, matrix, recordings, select
 from .data.dataset import Dataset
 from .data.preprocess import Preprocessor
+from .errors import DataError
 from .family import Family
 from .metrics import METRICS, nmse
+
+
+def _named_columns(frame, names: list[str]):
+    """The model's channels of a DataFrame when it names them all (any order), else the frame as given."""
+    if getattr(frame, "ndim", 1) == 2 and all(n in frame.columns for n in names):
+        return select(frame, names, "columns")
+    return frame
+
+
+def _each_named(signals, names: list[str]):
+    """:func:`_named_columns` of a signal or of every signal of a list of recordings."""
+    if is_recording_list(signals):
+        return [_named_columns(s, names) if is_pandas(s) else s for s in signals]
+    return _named_columns(signals, names) if is_pandas(signals) else signals
 
 
 @dataclass
@@ -20,6 +36,30 @@ class Run:
 
     y: np.ndarray
     diverged_at: int | None
+
+
+def band_check(
+    y: np.ndarray, bounds: tuple[np.ndarray, np.ndarray] | None, diverged_at: int | None = None, start: int = 0
+) -> tuple[np.ndarray, int | None]:
+    """The model-space run ``y`` with NaN from the first sample at or after ``start`` (the end of a
+    tune-in, whose outputs are no prediction) outside ``bounds`` (lo, hi) or non-finite, and that
+    sample (the earlier of it and ``diverged_at``); None when the run stays inside."""
+    if y.ndim == 1:
+        y = y[:, None]
+    bad = ~np.isfinite(y)
+    if bounds is not None:
+        lo, hi = (np.asarray(b, dtype=np.float64) for b in bounds)
+        with np.errstate(invalid="ignore"):
+            bad |= (y < lo) | (y > hi)
+    bad[:start] = False
+    rows = np.flatnonzero(bad.any(axis=1))
+    first = int(rows[0]) if rows.size else None
+    if diverged_at is not None and (first is None or diverged_at < first):
+        first = int(diverged_at)
+    if first is not None:
+        y = y.copy()
+        y[first:] = np.nan
+    return y, first
 
 
 @dataclass
@@ -33,6 +73,9 @@ class FittedModel:
     train_input: np.ndarray | None = None  # raw training inputs (for reliability checks)
     train_input_lengths: np.ndarray | None = None
     train_output: np.ndarray | None = None  # measured training outputs (tune-in of external-mode checks)
+
+    def __post_init__(self) -> None:
+        self.family.model_ = self  # the family's predict / score / dynmodel.save work in physical units
 
     @property
     def input_names(self) -> list[str]:
@@ -51,7 +94,20 @@ class FittedModel:
         """Measured output samples the model needs at the start of a run (tune-in)."""
         return self.family.warmup
 
+    @property
+    def washout(self) -> int:
+        """Samples after a recording's start that training and scoring left out (the spec's
+        ``data.transient``): a network's state is still forgetting its rest state there, so its
+        output is no prediction and is not held to the divergence band."""
+        data = self.spec.get("data") or {}
+        try:
+            return max(int(data.get("transient") or 0), 0)
+        except (TypeError, ValueError):
+            return 0
+
     def _inputs(self, u: np.ndarray | Mapping[str, np.ndarray]) -> np.ndarray:
+        if is_pandas(u):
+            u = matrix(_named_columns(u, self.input_names), "input")[0]
         if isinstance(u, Mapping):
             missing = [n for n in self.input_names if n not in u]
             if missing:
@@ -69,23 +125,57 @@ class FittedModel:
         return u
 
     def run(self, u, y_measured: np.ndarray | None = None) -> Run:
-        """Free run from the rest state over the whole input; NaN after a divergence."""
+        """Free run from the rest state over the whole input; NaN after a divergence.
+
+        Every family's run is held to the divergence band here, whether or not the family feeds
+        its output back: a run that leaves the training output range widened by
+        ``DIVERGENCE_MARGIN`` range widths (or turns non-finite) after the tune-in and the
+        :attr:`washout` diverged at that sample."""
         um = self.preprocessor.inputs(self._inputs(u))
-        ym = None if y_measured is None else self.preprocessor.outputs(y_measured)
+        ym = None if y_measured is None else self.preprocessor.outputs(self._outputs(y_measured))
         sim = self.family.simulate(um, ym, self.bounds)
-        return Run(self.preprocessor.physical_outputs(sim.y), sim.diverged_at)
+        start = max(self.warmup if y_measured is not None else 0, self.washout)
+        y, diverged_at = band_check(np.asarray(sim.y, dtype=np.float64), self.bounds, sim.diverged_at, start)
+        return Run(self.preprocessor.physical_outputs(y), diverged_at)
+
+    def _outputs(self, y) -> np.ndarray:
+        return matrix(_named_columns(y, self.output_names), "output")[0] if is_pandas(y) else y
 
     def predict(self, u, y_tune: np.ndarray | None = None) -> np.ndarray:
-        """Free-running prediction (n, n_outputs) in physical units.
+        """Free-running prediction (n, n_outputs) in physical units; a DataFrame indexed like ``u``
+        when ``u`` is a pandas DataFrame or Series.
 
         ``y_tune``: measured outputs, at least the first :attr:`warmup` samples (external mode).
         """
-        return self.run(u, y_tune).y
+        return like_input(u, self.run(u, y_tune).y, self.output_names)
 
     def predict_one_step(self, u, y_measured: np.ndarray) -> np.ndarray | None:
         um = self.preprocessor.inputs(self._inputs(u))
-        pred = self.family.predict_one_step(um, self.preprocessor.outputs(y_measured))
-        return None if pred is None else self.preprocessor.physical_outputs(pred)
+        pred = self.family.predict_one_step(um, self.preprocessor.outputs(self._outputs(y_measured)))
+        return None if pred is None else like_input(u, self.preprocessor.physical_outputs(pred), self.output_names)
+
+    def score(self, u, y) -> float:
+        """R^2 of the free run, scikit-learn's regressor score (higher is better, 1 perfect, 0 the level
+        of the output's mean): 1 - NMSE / 100 averaged over outputs (eq. 5.48), over every sample after
+        the first :attr:`warmup` ones, which the run takes from ``y`` as its tune-in. ``u`` and ``y``
+        may be lists of recordings (pooled, as a split is). A free run that diverges scores -inf."""
+        u, y = _each_named(u, self.input_names), _each_named(y, self.output_names)
+        recs, _, _ = recordings(u, y, self.input_names, self.output_names, "score")
+        warm = self.warmup
+        measured, predicted = [], []
+        for rec in recs:
+            if rec.n <= warm:
+                raise DataError(
+                    f"'{rec.name}' has {rec.n} samples, and the model takes its first {warm} as the tune-in",
+                    "score",
+                    "score on longer recordings",
+                )
+            run = self.run(rec.u, rec.y[:warm] if warm else None)
+            if run.diverged_at is not None:
+                return float("-inf")
+            measured.append(rec.y[warm:])
+            predicted.append(run.y[warm:])
+        return float(1.0 - np.mean(nmse(np.concatenate(measured), np.concatenate(predicted))) / 100.0)
 
     @property
     def unstable(self) -> dict[str, Any] | None:
@@ -112,7 +202,7 @@ def evaluate(
         rows = ds.scored(split, warmup=warm)
         entry: dict[str, Any] = {"samples": int(sum(b - a for _, a, b in rows))}
         unstable = None
-        for rec, a, b in rows:
+        for rec, _a, b in rows:
             k = runs[rec].diverged_at
             if k is not None and k < b:
                 unstable = {"recording": ds.recordings[rec].name, "sample": int(k), "time": float(k * st)}

@@ -54,7 +54,7 @@ def measured_vs_simulated(
         lim = _limits(y[:, k]) if np.isfinite(y[:, k]).any() else _limits(yhat[:, k])
         for label, a, b in spans or []:
             for ax in (full, err):
-                ax.axvspan(a, b, color=_SPLIT_COLORS.get(label, "#eeeeee"), lw=0)
+                ax.axvspan(a, b, color=_SPLIT_COLORS.get(label.split(":")[0], "#eeeeee"), lw=0)
             full.text(a, 1.0, f" {label}", transform=full.get_xaxis_transform(), va="top", fontsize=8, color="#555")
         if tune_in:
             for ax in (full, err):
@@ -81,6 +81,7 @@ def measured_vs_simulated(
     axes[-1, 0].set_xlabel("time")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
@@ -120,6 +121,7 @@ def recording(
         near.set_title(f"the first {zoom.stop} samples", fontsize=9)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
@@ -172,6 +174,7 @@ def tracking_error(
         ax.set_ylim(-span, span)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

@@ -50,9 +50,18 @@ def families() -> dict[str, Any]:
     return dict(_load_group(FAMILIES))
 
 
+def _is_benchmark(obj: Any) -> bool:
+    return getattr(obj, "kind", None) == "benchmark"
+
+
 def sources() -> dict[str, Any]:
-    """Installed data generators, by id."""
-    return dict(_load_group(SOURCES))
+    """Installed data generators, by id (the ``dynmodel.sources`` entries that are not benchmarks)."""
+    return {k: v for k, v in _load_group(SOURCES).items() if not _is_benchmark(v)}
+
+
+def benchmarks() -> dict[str, Any]:
+    """Installed benchmark sources (``dynmodel.sources`` entries with ``kind = "benchmark"``), by id."""
+    return {k: v for k, v in _load_group(SOURCES).items() if _is_benchmark(v)}
 
 
 def systems() -> dict[str, Any]:
@@ -88,6 +97,10 @@ def family(name: str) -> Any:
 
 def source(name: str) -> Any:
     return _lookup(sources(), "generator", name, "data.generator")
+
+
+def benchmark(name: str) -> Any:
+    return _lookup(benchmarks(), "benchmark", name, "data.benchmark")
 
 
 def system(name: str) -> Any:

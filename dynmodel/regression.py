@@ -13,6 +13,7 @@ All functions take a feature matrix F (N, K) and targets Y (N, q) and return a
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -65,14 +66,21 @@ def lstsq(F: np.ndarray, Y: np.ndarray, rcond: float | None = None, fit_intercep
     (default ``rcond``: machine epsilon times max(N, K), as numpy and MATLAB's pinv)."""
     Y = _as2d(Y)
     R, QtY = qr_reduce(np.asarray(F, dtype=np.float64), Y, ones=fit_intercept)
+    W, rank = lstsq_factor(R, QtY, F.shape[0], rcond)
+    if fit_intercept:
+        return LinearFit(W[:-1], W[-1], info={"rank": rank})
+    return LinearFit(W, np.zeros(Y.shape[1]), info={"rank": rank})
+
+
+def lstsq_factor(R: np.ndarray, QtY: np.ndarray, n_rows: int, rcond: float | None = None) -> tuple[np.ndarray, int]:
+    """Minimum-norm solution (and rank) of min ||A w - Y|| given any square factor R with
+    R^T R = A^T A and R^T QtY = A^T Y (A has ``n_rows`` rows): through the SVD of R, singular
+    values below ``rcond * s_max`` dropped (default eps * max(n_rows, K))."""
     U, s, Vt = np.linalg.svd(R)
     if rcond is None:
-        rcond = np.finfo(np.float64).eps * max(F.shape[0], R.shape[0])
+        rcond = np.finfo(np.float64).eps * max(n_rows, R.shape[0])
     keep = s > rcond * (s[0] if s.size else 0.0)
-    W = Vt[keep].T @ ((U[:, keep].T @ QtY) / s[keep, None])
-    if fit_intercept:
-        return LinearFit(W[:-1], W[-1], info={"rank": int(keep.sum())})
-    return LinearFit(W, np.zeros(Y.shape[1]), info={"rank": int(keep.sum())})
+    return Vt[keep].T @ ((U[:, keep].T @ QtY) / s[keep, None]), int(keep.sum())
 
 
 def ridge_path(F: np.ndarray, Y: np.ndarray, alphas=None, fit_intercept: bool = True) -> list[LinearFit]:
@@ -85,6 +93,12 @@ def ridge_path(F: np.ndarray, Y: np.ndarray, alphas=None, fit_intercept: bool = 
     fm = F.mean(axis=0) if fit_intercept else np.zeros(F.shape[1])
     ym = Y.mean(axis=0) if fit_intercept else np.zeros(Y.shape[1])
     R, QtY = qr_reduce(F - fm, Y - ym)
+    return ridge_factor_path(R, QtY, fm, ym, alphas)
+
+
+def ridge_factor_path(R: np.ndarray, QtY: np.ndarray, fm: np.ndarray, ym: np.ndarray, alphas=None) -> list[LinearFit]:
+    """:func:`ridge_path` from a factor R, QtY of the centred features and targets (R^T R = Fc^T Fc,
+    R^T QtY = Fc^T Yc) and the means ``fm``, ``ym`` (zeros: no intercept)."""
     U, s, Vt = np.linalg.svd(R)
     UtY = U.T @ QtY
     if alphas is None:
@@ -139,22 +153,32 @@ class FosPath:
     best: int  # number of terms kept
 
 
-class _Stopper:
-    """The stopping rule shared by both FOS variants: with a validation pool, the number of terms
-    with the lowest validation error, searched until ``patience`` terms bring no new lowest
-    (thesis A.3); without one, every selected term is kept."""
+#: validation error of a FOS model: (selected pool indices, their coefficients) -> an error to
+#: minimise (inf when the model cannot be evaluated), e.g. the mean squared error of the validation
+#: rows (from their moments) or of a NARX model's free run on the validation split
+ValidationError = Callable[[list[int], np.ndarray], float]
 
-    def __init__(self, Pv: np.ndarray | None, yv: np.ndarray | None, patience: int):
-        self.Pv, self.yv, self.patience = Pv, yv, patience
+
+class _Stopper:
+    """The stopping rule shared by both FOS variants: with a validation pool (or a ``validation``
+    error function), the number of terms with the lowest validation error, searched until
+    ``patience`` terms bring no new lowest (thesis A.3); without one, every selected term is kept."""
+
+    def __init__(
+        self, Pv: np.ndarray | None, yv: np.ndarray | None, patience: int, validation: ValidationError | None = None
+    ):
+        if validation is None and Pv is not None and yv is not None:
+            validation = lambda order, coef: float(np.mean((yv - Pv[:, order] @ coef) ** 2))  # noqa: E731
+        self.validation, self.patience = validation, patience
         self.errors: list[float] = []
         self.best_m, self.best_val, self.since_best = 0, np.inf, 0
 
     def add(self, order: list[int], coef: np.ndarray, forced: bool) -> bool:
         """Record the model with ``order`` terms; True when the search should stop."""
-        if self.Pv is None or self.yv is None:
+        if self.validation is None:
             self.best_m = len(order)
             return False
-        err = float(np.mean((self.yv - self.Pv[:, order] @ coef) ** 2))
+        err = float(self.validation(list(order), coef))
         self.errors.append(err)
         if err < self.best_val * (1 - 1e-12) or forced:
             self.best_val, self.best_m, self.since_best = err, len(order), 0
@@ -185,6 +209,7 @@ def fos_select(
     patience: int = 1,
     tol: float = 1e-10,
     ties: float = 0.0,
+    validation: ValidationError | None = None,
 ) -> FosPath:
     """Korenberg's FOS on the Gram matrix G = P^T P of the pool P, c = P^T y, yy = y^T y.
 
@@ -197,6 +222,8 @@ def fos_select(
     Stopping: ``max_terms``; ``threshold`` on Q / yy (the error-reduction ratio); or, with a
     validation pool ``Pv`` and targets ``yv``, after ``patience`` terms without a new lowest
     validation error (``patience=1``: stop at the first rise). The kept size is the best one.
+    ``validation(order, coef)`` may give that error instead of ``Pv``, ``yv`` (e.g. from the
+    accumulated moments of the validation rows, :mod:`dynmodel.moments`, or the error of a free run).
     ``ties``: candidates whose error reduction is within this relative tolerance of the largest
     count as equal and the first of them in pool order is chosen (e.g. the lower-degree monomial).
     """
@@ -213,7 +240,7 @@ def fos_select(
     available = diag > 0
     order: list[int] = []
     coef_path: list[np.ndarray] = []
-    stopper = _Stopper(Pv, yv, patience)
+    stopper = _Stopper(Pv, yv, patience, validation)
     for m in range(limit):
         if m > 0:
             prev = order[-1]
@@ -225,7 +252,7 @@ def fos_select(
         valid = available & (Dmm > tol * np.maximum(diag, 1e-300))
         if not valid.any():
             break
-        i = _next_term(m, forced, valid, lambda: Ct * Ct / np.where(valid, Dmm, 1.0), threshold, yy, ties)
+        i = _next_term(order, forced, valid, lambda: Ct * Ct / np.where(valid, Dmm, 1.0), threshold, yy, ties)
         if i is None:
             break
         alpha[m, :m] = Dt[:m, i] / D[:m]
@@ -237,7 +264,7 @@ def fos_select(
         A = np.eye(m + 1) + np.tril(alpha[: m + 1, : m + 1], -1)
         coef = _solve_unit_upper(A.T, beta)
         coef_path.append(coef)
-        if stopper.add(order, coef, m < len(forced)):
+        if stopper.add(order, coef, i in forced):
             break
     return stopper.path(order, coef_path, Q)
 
@@ -254,6 +281,7 @@ def fos_select_qr(
     yv: np.ndarray | None = None,
     patience: int = 1,
     tol: float = 1e-24,
+    validation: ValidationError | None = None,
 ) -> FosPath:
     """FOS with the same selection rule as :func:`fos_select`, numerically stable.
 
@@ -275,13 +303,13 @@ def fos_select_qr(
     order: list[int] = []
     coef_path: list[np.ndarray] = []
     Q = np.zeros(limit)
-    stopper = _Stopper(Pv, yv, patience)
+    stopper = _Stopper(Pv, yv, patience, validation)
     for m in range(limit):
         d = np.einsum("ij,ij->j", V, V)
         valid = available & (d > tol * np.maximum(norm0, 1e-300)) & (d > 0)
         if not valid.any():
             break
-        i = _next_term(m, forced, valid, lambda: (V.T @ r) ** 2 / np.where(valid, d, 1.0), threshold, yy)
+        i = _next_term(order, forced, valid, lambda: (V.T @ r) ** 2 / np.where(valid, d, 1.0), threshold, yy)
         if i is None:
             break
         q = V[:, i] / np.sqrt(d[i])
@@ -296,20 +324,30 @@ def fos_select_qr(
         U = T[: m + 1][:, order]  # upper triangular: the chosen columns = Q_sel U
         coef = scipy.linalg.solve_triangular(U, beta[: m + 1])
         coef_path.append(coef)
-        if stopper.add(order, coef, m < len(forced)):
+        if stopper.add(order, coef, i in forced):
             break
     return stopper.path(order, coef_path, Q)
 
 
 def _next_term(
-    m: int, forced: tuple[int, ...], valid: np.ndarray, reduction, threshold: float | None, yy: float, ties: float = 0.0
+    chosen: list[int],
+    forced: tuple[int, ...],
+    valid: np.ndarray,
+    reduction,
+    threshold: float | None,
+    yy: float,
+    ties: float = 0.0,
 ) -> int | None:
-    """Index of the m-th FOS term, or None to stop: the forced terms first, then the candidate with
+    """Index of the next FOS term, or None to stop: the forced terms first (skipping those numerically in
+    the span of the terms already chosen), then the candidate with
     the largest error reduction Q = C^2 / D (appendix A.2.2), the first of the nearly best ones in pool
     order when ``ties`` > 0; stop when nothing is left or the best reduction falls below
     ``threshold`` times y'y. ``reduction()`` gives Q for every candidate."""
-    if m < len(forced):
-        return forced[m] if valid[forced[m]] else None
+    pending = [f for f in forced if f not in chosen]
+    while pending and not valid[pending[0]]:  # a forced term in the span of those chosen adds nothing
+        pending.pop(0)
+    if pending:
+        return pending[0]
     score = np.where(valid, reduction(), -np.inf)
     i = int(np.argmax(score))
     if ties > 0.0:

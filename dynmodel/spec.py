@@ -94,9 +94,36 @@ class NoiseSpec(StrictModel):
     seed: Optional[int] = Field(None, ge=0, description="noise seed; default derived from the spec seed")
 
 
+class ChannelFiles(StrictModel):
+    """One recording whose input and output columns lie in two files (e.g. uval.mat and yval.mat)."""
+
+    input: str = Field(description="the file holding the input columns")
+    output: str = Field(description="the file holding the output columns (same number of samples)")
+
+
+def _path_tag(value: Any) -> str:
+    return "list" if isinstance(value, list) else "files" if isinstance(value, (dict, ChannelFiles)) else "file"
+
+
+_OnePath = Annotated[
+    Union[Annotated[str, Tag("file")], Annotated[ChannelFiles, Tag("files")]],
+    Discriminator(
+        _path_tag, custom_error_type="path", custom_error_message="write a file name or {input: FILE, output: FILE}"
+    ),
+]
+#: a data file, a recording split over an input file and an output file, or a list of either
+PathSpec = Annotated[
+    Union[Annotated[str, Tag("file")], Annotated[ChannelFiles, Tag("files")], Annotated[list[_OnePath], Tag("list")]],
+    Discriminator(
+        _path_tag, custom_error_type="path", custom_error_message="write a file name or {input: FILE, output: FILE}"
+    ),
+]
+
+
 class FileSourceFields(StrictModel):
-    path: Union[str, list[str]] = Field(
-        description="CSV/TXT (header row), NPZ, HDF5 or MATLAB .mat; a list means several recordings"
+    path: PathSpec = Field(
+        description="CSV/TXT (header row), NPZ, HDF5 or MATLAB .mat; {input: FILE, output: FILE} when the input "
+        "and output columns lie in two files; a list means several recordings"
     )
     input: list[Union[str, int]] = Field(
         min_length=1,
@@ -126,7 +153,7 @@ class FileSourceFields(StrictModel):
 class SeparateSource(StrictModel):
     """A separate recording for one split; unset keys are taken from the main source."""
 
-    path: Optional[Union[str, list[str]]] = None
+    path: Optional[PathSpec] = None
     input: Optional[list[Union[str, int]]] = None
     output: Optional[list[Union[str, int]]] = None
     header: Optional[bool] = None
@@ -141,6 +168,55 @@ class SeparateSource(StrictModel):
     params: Optional[dict[str, Any]] = None
     n: Optional[int] = Field(None, gt=0)
     seed: Optional[int] = Field(None, ge=0)
+
+
+TEST_NAME = r"^[A-Za-z][A-Za-z0-9_-]*$"
+
+
+class TestSource(SeparateSource):
+    """One of several named test sets; unset keys are taken from the main source. Scored as
+    ``test:<name>`` (metrics, ``--json``, the model file)."""
+
+    name: str = Field(
+        pattern=TEST_NAME,
+        description="name of this test set (letters, digits, '_' and '-'); its metrics key is test:<name>",
+    )
+    init_window: Optional[int] = Field(
+        None, ge=0, description="this test set's initialization window (default: data.init_window)"
+    )
+    score: Optional[Literal["window", "all"]] = Field(
+        None, description="this test set's scoring (default: evaluation.score)"
+    )
+
+
+def _unique_test_names(v: Any) -> Any:
+    if isinstance(v, list):
+        if not v:
+            raise ValueError("the list of test sets is empty; name at least one, or leave test out")
+        names = [t if isinstance(t, str) else t.name for t in v]
+        dup = next((n for n in names if names.count(n) > 1), None)
+        if dup is not None:
+            raise ValueError(f"two test sets are named '{dup}'; give each a different name")
+    return v
+
+
+def _test_tag(value: Any) -> str:
+    return "named" if isinstance(value, list) else "single"
+
+
+#: data.test: one separate test recording, or a list of named test sets
+TestSpec = Annotated[
+    Union[Annotated[SeparateSource, Tag("single")], Annotated[list[TestSource], Tag("named")]],
+    Discriminator(_test_tag),
+]
+_UNION_TAGS = ("single", "named", "files", "list")
+
+
+class InitWindowSplits(StrictModel):
+    """Initialization windows per split (test applies to every test set)."""
+
+    validation: Optional[int] = Field(None, ge=0, description="samples at the start of each validation recording")
+    test: Optional[int] = Field(None, ge=0, description="samples at the start of each test recording")
 
 
 class SaturatingTime(StrictModel):
@@ -214,7 +290,18 @@ class DataCommon(StrictModel):
         description="default {train: 0.6, validation: 0.2, test: 0.2}; without test when a separate test source is given",
     )
     validation: Optional[SeparateSource] = Field(None, description="a separate validation recording")
-    test: Optional[SeparateSource] = Field(None, description="a separate test recording")
+    test: Optional[TestSpec] = Field(
+        None,
+        description="a separate test recording, or a list of named test sets [{name: ..., path/segments/...}] "
+        "each scored on its own (metrics keys test:<name>)",
+    )
+    init_window: Optional[Union[Annotated[int, Field(ge=0)], InitWindowSplits]] = Field(
+        None,
+        description="state-initialization window of the benchmark protocols: the first k samples of every "
+        "validation and test recording may initialize the model (measured past outputs, tune-in, washout) and are "
+        "not scored; a validation or test range inside a longer recording becomes a run of its own. A number applies "
+        "to validation and test, {validation: k, test: k} per split. Training is never trimmed by it",
+    )
     transient: int = Field(
         0, ge=0, description="samples excluded from fitting and scoring at the start of each split segment"
     )
@@ -248,9 +335,21 @@ class DataCommon(StrictModel):
         "standard", description="standard: zero mean, unit std per channel from the training split"
     )
 
+    @field_validator("test")
+    @classmethod
+    def _test_names(cls, v: Any) -> Any:
+        return _unique_test_names(v)
+
 
 class FileData(DataCommon, FileSourceFields):
     pass
+
+
+class ReportUnit(StrictModel):
+    """A unit for reporting an output: reported value = scale x value in the data's units."""
+
+    scale: float = Field(gt=0, description="factor from the data's units (1000: V -> mV, m -> mm)")
+    name: str = Field(min_length=1, description="the unit's name, e.g. mm")
 
 
 class EvaluationSpec(StrictModel):
@@ -261,6 +360,17 @@ class EvaluationSpec(StrictModel):
         description="nmse (%), max (in output stds), rmse (output units), fit (%: 100 (1 - rmse / std))",
     )
     one_step: bool = Field(True, description="also report the one-step NMSE where the family distinguishes it")
+    units: dict[str, ReportUnit] = Field(
+        default_factory=dict,
+        description="report the RMSE of these outputs in other units, e.g. {qm: {scale: 1000, name: mm}} "
+        "(benchmark sources set their protocol's units)",
+    )
+    score: Literal["window", "all"] = Field(
+        "window",
+        description="window: validation and test are scored after their transient, initialization window and the "
+        "model's measured start; all: every validation and test sample is scored, so the model may use no measured "
+        "output (the Cascaded Tanks and Bouc-Wen PDF protocols)",
+    )
 
     @field_validator("metrics")
     @classmethod
@@ -272,8 +382,31 @@ class EvaluationSpec(StrictModel):
 
 def _data_tag(value: Any) -> str | None:
     if isinstance(value, dict):
-        return f"generator:{value['generator']}" if "generator" in value else "file"
+        if "generator" in value:
+            return f"generator:{value['generator']}"
+        return "benchmark" if "benchmark" in value else "file"
     return getattr(value, "source_tag", None)
+
+
+def _benchmark_data_model(benches: dict[str, Any]) -> type[BaseModel]:
+    names = tuple(sorted(benches))
+    model = create_model(
+        "BenchmarkData",
+        __base__=DataCommon,
+        __doc__="a standard benchmark read from local files, with its protocol's splits, windows and units",
+        benchmark=(Literal[names], Field(description="the benchmark (see `dynmodel plugins`)")),  # type: ignore[valid-type]
+        root=(str, Field(description="folder holding the benchmark's files (relative to the spec file)")),
+        test=(
+            Optional[list[Annotated[str, Field(pattern=TEST_NAME)]]],
+            Field(None, description="the benchmark's test sets to score (default: all of them)"),
+        ),
+        validation=(
+            None,
+            Field(None, description="not available: carve the validation split from the training data with split"),
+        ),
+    )
+    model.source_tag = property(lambda self: "benchmark")  # type: ignore[attr-defined]
+    return model
 
 
 def _generator_data_model(name: str, gen: Any) -> type[BaseModel]:
@@ -313,6 +446,8 @@ def spec_model() -> type[BaseModel]:
     FileData.source_tag = property(lambda self: "file")  # type: ignore[attr-defined]
     data_variants = [Annotated[FileData, Tag("file")]]
     data_variants += [Annotated[_generator_data_model(n, g), Tag(f"generator:{n}")] for n, g in gens.items()]
+    if registry.benchmarks():
+        data_variants.append(Annotated[_benchmark_data_model(registry.benchmarks()), Tag("benchmark")])
     DataSpec = Annotated[Union[tuple(data_variants)], Discriminator(_data_tag)]  # type: ignore[valid-type]
     model_variants = [_model_spec_model(n, f) for n, f in fams.items()]
     if not model_variants:
@@ -329,8 +464,10 @@ def spec_model() -> type[BaseModel]:
         name: str = Field("model", description="experiment name, used for the default output file")
         data: DataSpec  # type: ignore[valid-type]
         model: ModelSpec  # type: ignore[valid-type]
-        cost: Literal["mse1", "mse_inf"] = Field(
-            "mse1", description="mse1: one-step error; mse_inf: free-running error"
+        cost: Optional[Literal["mse1", "mse_inf"]] = Field(
+            None,
+            description="mse1: one-step error; mse_inf: free-running error; default: the family's own "
+            "(narx: mse_inf, the networks: mse1)",
         )
         evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec)
         seed: int = Field(0, ge=0, description="seed of every random choice in fitting (networks, noise)")
@@ -338,6 +475,12 @@ def spec_model() -> type[BaseModel]:
 
         _base_dir: Path = PrivateAttr(default_factory=Path.cwd)
         _source: str = PrivateAttr(default="<spec>")
+
+        @model_validator(mode="after")
+        def _family_cost(self):
+            if self.cost is None:
+                self.cost = getattr(fams.get(self.model.family), "default_cost", "mse1")
+            return self
 
         @property
         def base_dir(self) -> Path:
@@ -357,16 +500,26 @@ def spec_model() -> type[BaseModel]:
         def resolved(self) -> dict[str, Any]:
             """The full spec with defaults filled in and data paths made absolute."""
             d = self.model_dump(mode="json")
-            for section in [d["data"], d["data"].get("test") or {}, d["data"].get("validation") or {}]:
-                p = section.get("path")
-                if isinstance(p, str):
-                    section["path"] = str(self.resolve_path(p))
-                elif isinstance(p, list):
-                    section["path"] = [str(self.resolve_path(x)) for x in p]
+            test = d["data"].get("test")
+            tests = [t for t in test if isinstance(t, dict)] if isinstance(test, list) else [test or {}]
+            for section in [d["data"], *tests, d["data"].get("validation") or {}]:
+                if section.get("path") is not None:
+                    section["path"] = _resolve_paths(section["path"], self.resolve_path)
+            if isinstance(d["data"].get("root"), str):
+                d["data"]["root"] = str(self.resolve_path(d["data"]["root"]))
             d["output"] = str(self.output_path())
             return d
 
     return Spec
+
+
+def _resolve_paths(p: Any, resolve) -> Any:
+    """Every file name of a ``path`` value (a name, {input, output}, or a list of either) made absolute."""
+    if isinstance(p, str):
+        return str(resolve(p))
+    if isinstance(p, dict):
+        return {k: str(resolve(v)) for k, v in p.items()}
+    return [_resolve_paths(x, resolve) for x in p]
 
 
 # ---------------------------------------------------------------- error formatting
@@ -378,10 +531,32 @@ def _unwrap(tp: Any) -> Any:
     return tp
 
 
+def _leaves(node: Any) -> list[Any]:
+    """The member types of a (nested, Optional, Annotated) union."""
+    node = _unwrap(node)
+    if get_origin(node) is Union:
+        return [leaf for a in get_args(node) if a is not type(None) for leaf in _leaves(a)]
+    return [node]
+
+
 def _allowed_keys(loc: tuple) -> list[str] | None:
     """Field names of the section that ``loc`` (ending with the bad key) points into."""
     node: Any = spec_model()
-    for part in loc[:-1]:
+    for i, part in enumerate(loc[:-1]):
+        leaves = _leaves(node)
+        lists = [a for a in leaves if get_origin(a) is list]
+        if isinstance(part, int) or part == "named":  # into a list (of named test sets)
+            if not lists:
+                return None
+            node = lists[0] if part == "named" else get_args(lists[0])[0]
+            continue
+        named = (
+            {"single": "SeparateSource", "benchmark": "BenchmarkData"}.get(part, part) if i or part != "data" else ""
+        )
+        member = next((a for a in leaves if getattr(a, "__name__", None) == named), None)
+        if member is not None and (part != "benchmark" or i == 1):  # the tag of a union member
+            node = member
+            continue
         node = _unwrap(node)
         if isinstance(node, type) and issubclass(node, BaseModel):
             if part not in node.model_fields:
@@ -419,10 +594,24 @@ def _allowed_keys(loc: tuple) -> list[str] | None:
     return None
 
 
+def _is_member_tag(p: Any) -> bool:
+    """A union member's name in a pydantic error location (a model class, a tag of data.test), not a key."""
+    if not isinstance(p, str):
+        return False
+    models = {c.__name__ for c in StrictModel.__subclasses__()} | {"TestSource", "FileData"}
+    return p in models or p in _UNION_TAGS or p in ("int", "float", "str") or p.startswith(("list[", "constrained-"))
+
+
 def _dotted(loc: tuple) -> str:
     parts = []
+    bench_tag = False
     for p in loc:
         if isinstance(p, str) and (p == "file" or p.startswith("generator:") or p.startswith("function-")):
+            continue
+        if p == "benchmark" and parts == ["data"] and not bench_tag:  # the tag of the benchmark source
+            bench_tag = True
+            continue
+        if _is_member_tag(p):
             continue
         if isinstance(p, str) and parts == ["model"] and p in registry.families():
             continue
@@ -432,8 +621,14 @@ def _dotted(loc: tuple) -> str:
 
 def _loc_without_tags(loc: tuple) -> tuple:
     out = []
+    bench_tag = False
     for p in loc:
         if isinstance(p, str) and (p == "file" or p.startswith("generator:")):
+            continue
+        if p == "benchmark" and out == ["data"] and not bench_tag:
+            bench_tag = True
+            continue
+        if _is_member_tag(p):
             continue
         if isinstance(p, str) and out == ["model"] and p in registry.families():
             continue
@@ -467,7 +662,7 @@ def format_validation_error(err: ValidationError, source: str) -> SpecError:
         key = str(loc[-1])
         allowed = _allowed_keys(loc) or []
         close = difflib.get_close_matches(key, allowed, n=1)
-        fix = f"did you mean '{close[0]}'?" if close else "remove it"
+        fix = f"did you mean '{close[0]}'?" if close else "remove it."
         if allowed:
             fix += f" Allowed keys here: {', '.join(allowed)}"
         return SpecError(f"unknown key '{key}'", f"{source}: {_dotted(loc[:-1]) or 'top level'}", fix)
@@ -506,9 +701,10 @@ def _construct_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bo
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
-def parse_yaml(text: str, source: str) -> dict[str, Any]:
+def read_yaml(text: str, source: str) -> Any:
+    """Safe YAML with duplicate keys refused; a malformed document raises SpecError naming the line."""
     try:
-        raw = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - safe loader subclass
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - safe loader subclass
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
@@ -516,6 +712,10 @@ def parse_yaml(text: str, source: str) -> dict[str, Any]:
         raise SpecError(
             f"malformed YAML: {problem}", where, "check indentation, colons and brackets on that line"
         ) from None
+
+
+def parse_yaml(text: str, source: str) -> dict[str, Any]:
+    raw = read_yaml(text, source)
     if raw is None:
         raise SpecError("the spec is empty", source, "write at least data: and model: sections")
     if not isinstance(raw, dict):
@@ -536,9 +736,11 @@ def _precheck_plugins(raw: dict[str, Any], source: str) -> None:
             what, fix = registry.unknown_name_message("family", str(model["family"]), known)
             raise SpecError(what, f"{source}: model.family", fix)
     data = raw.get("data")
+    test = data.get("test") if isinstance(data, dict) else None
+    tests = [(t, f"data.test[{i}]") for i, t in enumerate(test)] if isinstance(test, list) else [(test, "data.test")]
     for section, where in [
         (data, "data"),
-        ((data or {}).get("test") if isinstance(data, dict) else None, "data.test"),
+        *tests,
         ((data or {}).get("validation") if isinstance(data, dict) else None, "data.validation"),
     ]:
         if isinstance(section, dict) and section.get("generator") is not None:
@@ -546,20 +748,47 @@ def _precheck_plugins(raw: dict[str, Any], source: str) -> None:
             if section["generator"] not in known:
                 what, fix = registry.unknown_name_message("generator", str(section["generator"]), known)
                 raise SpecError(what, f"{source}: {where}.generator", fix)
-    if isinstance(data, dict) and "path" in data and "generator" in data:
+    if isinstance(data, dict) and len({"path", "generator", "benchmark"} & set(data)) > 1:
+        given = " and ".join(f"'{k}'" for k in ("path", "generator", "benchmark") if k in data)
         raise SpecError(
-            "give either 'path' (measured data) or 'generator', not both", f"{source}: data", "remove one of them"
+            f"give one of 'path' (measured data), 'generator' or 'benchmark', not {given}",
+            f"{source}: data",
+            "remove all but one of them",
         )
+    if isinstance(data, dict) and data.get("benchmark") is not None:
+        _precheck_benchmark(data, source)
+
+
+def _precheck_benchmark(data: dict[str, Any], source: str) -> None:
+    """Name an unknown benchmark or test set with the installed alternatives."""
+    known = registry.benchmarks()
+    name = str(data["benchmark"])
+    if name not in known:
+        what, fix = registry.unknown_name_message("benchmark", name, sorted(known))
+        raise SpecError(what, f"{source}: data.benchmark", fix)
+    if data.get("validation") is not None:
+        raise SpecError(
+            "a benchmark has no separate validation recording",
+            f"{source}: data.validation",
+            "carve it from the training data, e.g. split: {train: 0.8, validation: 0.2}",
+        )
+    offered = list(known[name].test_sets)
+    for i, t in enumerate(data.get("test") or []):
+        if isinstance(t, str) and t not in offered:
+            shown = ", ".join(offered) if offered else "none by name (it has a single test set: leave test out)"
+            raise SpecError(
+                f"benchmark '{name}' has no test set '{t}'", f"{source}: data.test[{i}]", f"its test sets: {shown}"
+            )
 
 
 def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | None = None):
     """Validate a spec mapping; raises SpecError with one line on the first problem."""
     _precheck_plugins(raw, source)
-    if isinstance(raw.get("data"), dict) and not ({"path", "generator"} & set(raw["data"])):
+    if isinstance(raw.get("data"), dict) and not ({"path", "generator", "benchmark"} & set(raw["data"])):
         raise SpecError(
-            "data needs either 'path' (a measured-data file) or 'generator' (a built-in system)",
+            "data needs 'path' (a measured-data file), 'generator' (a built-in system) or 'benchmark'",
             f"{source}: data",
-            "add 'path: file.csv' with input/output columns, or 'generator: narx-system'",
+            "add 'path: file.csv' with input/output columns, 'generator: narx-system' or 'benchmark: silverbox'",
         )
     try:
         spec = spec_model().model_validate(raw)
@@ -570,6 +799,17 @@ def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | 
     return spec
 
 
+def read_spec_text(p: Path) -> str:
+    """The text of a spec file: UTF-8 (with or without BOM), UTF-16 or Latin-1; one-line errors."""
+    from .errors import DataError
+    from .textfiles import read_text_file
+
+    try:
+        return read_text_file(p, "spec")
+    except DataError as exc:
+        raise SpecError(exc.what, exc.where, exc.fix) from None
+
+
 def load_spec(path: str | Path):
     """Load and validate a YAML spec file. Relative paths inside resolve against its folder."""
     p = Path(path)
@@ -577,11 +817,7 @@ def load_spec(path: str | Path):
         raise SpecError("spec file not found", str(p), "check the path")
     if p.is_dir():
         raise SpecError("is a folder, not a spec file", str(p), "pass the YAML file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SpecError(f"cannot read the spec ({exc})", str(p), "check the file") from None
-    raw = parse_yaml(text, str(p))
+    raw = parse_yaml(read_spec_text(p), str(p))
     raw.setdefault("name", p.stem)
     return validate_spec(raw, str(p), p.parent)
 

@@ -2,23 +2,30 @@
 
 Layout (``format_version`` 1)::
 
-    /                 attrs: format="dynmodel-model", format_version, family, name, created
+    /                 attrs: format="dynmodel-model", format_version, family, family_params (JSON), name, created
     /spec             string dataset: the fully resolved spec as JSON
     /params/          family arrays as datasets; family attributes as attrs
     /preprocessing/   input/output offsets and scales, divergence bounds; names, delay lines as attrs
-    /eval/            one group per split with metric attrs; attr "metrics_json" holds everything
+    /eval/            one group per split with metric attrs (group test_<name> for the metrics key test:<name>,
+                      its attr "split" holds the key); attr "metrics_json" holds everything
     /provenance       attrs: dynmodel version, seed, sha256 of the training data, library versions
     /data/            training inputs and outputs (for reliability checks), gzip-compressed
 
-The file is written to a temporary name in the target folder and renamed, so a crash never
-leaves a half-written model behind.
+The file is written to a temporary name in the target folder (``.<name>.<pid>@<host>.<random>.tmp``)
+and renamed, so a crash never leaves a half-written model behind; a temporary file left by a killed
+write is removed by the next write to that path. The file gets the permissions of any new file
+(0666 minus the user's umask), not the private 0600 of a temporary file.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
+import socket
 import tempfile
+import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +34,7 @@ import numpy as np
 from . import registry
 from .data.preprocess import Preprocessor
 from .errors import ModelFileError
+from .family import Family
 from .model import FittedModel
 
 FORMAT = "dynmodel-model"
@@ -73,19 +81,88 @@ def _json_default(o: Any):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def save(model: FittedModel, path: str | Path) -> Path:
-    """Write ``model`` to ``path`` atomically; returns the path."""
+def eval_group(split: str) -> str:
+    """The /eval group of a metrics key: ``test:<name>`` -> ``test_<name>`` (no ':' in HDF5 names)."""
+    return split.replace(":", "_")
+
+
+#: a temporary file of another host (or of an unknown writer) counts as stale after this many seconds
+STALE_AFTER = 3600.0
+
+
+def _host() -> str:
+    return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname())[:32] or "host"
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+def remove_stale_temporaries(path: str | Path) -> list[Path]:
+    """Remove the temporary files that killed writes to ``path`` left behind: those of a process
+    of this host that no longer runs, and any other one older than :data:`STALE_AFTER`."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    prefix = f".{path.name}."
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    pattern = re.compile(r"^(?P<pid>\d+)@(?P<host>[A-Za-z0-9-]+)\.[^.]+$")
+    host, now = _host(), time.time()
+    for entry in entries:
+        name = entry.name
+        if not (name.startswith(prefix) and name.endswith(".tmp")) or not entry.is_file(follow_symlinks=False):
+            continue
+        m = pattern.match(name[len(prefix) : -len(".tmp")])
+        try:
+            age = now - entry.stat(follow_symlinks=False).st_mtime
+        except OSError:
+            continue
+        stale = age > STALE_AFTER
+        if m is not None and m.group("host") == host:
+            stale = not _pid_alive(int(m.group("pid")))
+        if stale:
+            try:
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+            except OSError:
+                pass
+    return removed
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def save(model: FittedModel | Family, path: str | Path) -> Path:
+    """Write ``model`` (a FittedModel, or a family fitted on arrays) to ``path`` atomically; returns the path."""
     import h5py
 
+    if isinstance(model, Family):
+        model = model._fitted_model()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    remove_stale_temporaries(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}@{_host()}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
+    os.chmod(tmp, 0o666 & ~_umask())
     try:
         with h5py.File(tmp, "w") as f:
             f.attrs["format"] = FORMAT
             f.attrs["format_version"] = FORMAT_VERSION
             f.attrs["family"] = model.family.name
+            # the family's own parameters: a model built in Python has no spec that names them
+            f.attrs["family_params"] = json.dumps(model.family.params.model_dump(mode="json"))
             f.attrs["name"] = str(model.spec.get("name", ""))
             f.attrs["created"] = str(model.provenance.get("created", ""))
             f.create_dataset("spec", data=json.dumps(model.spec, indent=1))
@@ -104,8 +181,8 @@ def save(model: FittedModel, path: str | Path) -> Path:
             eg = f.create_group("eval")
             eg.attrs["metrics_json"] = json.dumps(model.metrics, default=_json_default)
             for split, values in model.metrics.items():
-                sg = eg.create_group(split)
-                _write_attrs(sg, {k: v for k, v in values.items() if k != "per_output"})
+                sg = eg.create_group(eval_group(split))
+                _write_attrs(sg, {"split": split, **{k: v for k, v in values.items() if k != "per_output"}})
             prov = f.create_group("provenance")
             _write_attrs(prov, model.provenance)
             if model.train_input is not None:
@@ -123,13 +200,18 @@ def save(model: FittedModel, path: str | Path) -> Path:
     return path
 
 
-def load(path: str | Path) -> FittedModel:
-    """Read a model file; corrupt, incomplete or newer files raise ModelFileError."""
+def load(path: str | Path, families: Mapping[str, type[Family]] | None = None) -> FittedModel:
+    """Read a model file; corrupt, incomplete or newer files raise ModelFileError.
+
+    ``families``: family classes by id to use instead of the installed plugins (a family under
+    development, not yet registered)."""
     import h5py
 
     path = Path(path)
     if not path.exists():
         raise ModelFileError("model file not found", str(path), "check the path (dynmodel fit writes it)")
+    if path.is_dir():
+        raise ModelFileError("is a folder, not a model file", str(path), "give the .h5 file written by `dynmodel fit`")
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
@@ -165,7 +247,7 @@ def load(path: str | Path) -> FittedModel:
                     )
             spec = json.loads(f["spec"][()])
             family_name = str(f.attrs["family"])
-            family_cls = registry.families().get(family_name)
+            family_cls = (families if families is not None else registry.families()).get(family_name)
             if family_cls is None:
                 raise ModelFileError(
                     f"the model needs the family plugin '{family_name}', which is not installed",
@@ -174,7 +256,11 @@ def load(path: str | Path) -> FittedModel:
                 )
             arrays = {k: np.asarray(v[()]) for k, v in f["params"].items()}
             attrs = _read_attrs(f["params"])
-            family = family_cls.from_arrays(spec["model"]["params"], arrays, attrs)
+            if "family_params" in f.attrs:
+                params = json.loads(f.attrs["family_params"])
+            else:  # files written before family_params: the spec's model section holds them
+                params = spec["model"]["params"]
+            family = family_cls.from_arrays(params, arrays, attrs)
             pg = f["preprocessing"]
             pre = Preprocessor.from_arrays({k: pg[k][()] for k in pg}, _read_attrs(pg))
             bounds = (np.asarray(pg["bounds_low"][()]), np.asarray(pg["bounds_high"][()]))

@@ -84,6 +84,10 @@ def narx_spec(
         "input_connectivity": 0.1,
         "bias_connectivity": 0.8,
         "scale": {"by": "singular", "value": 0.95},
+        "relaxation": 0.0,  # the thesis's plain elements, without output clipping, tuned in on 100 samples
+        "relaxation_gain": False,
+        "tune_in": 100,
+        "bounds": None,
         **params,
     }
     return {

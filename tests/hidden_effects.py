@@ -92,7 +92,34 @@ class Case:
             "sampling_time": self.sampling_time,
             **self.data,
         }
-        return {"name": self.cause, "data": data, "model": self.model, "cost": self.cost, "seed": 0}
+        return {
+            "name": self.cause,
+            "data": data,
+            "model": pre_issue_14(self.model, names),
+            "cost": self.cost,
+            "seed": 0,
+        }
+
+
+#: the families' defaults these cases were built on (before issue 14 made the defaults search and clip):
+#: each case hides one effect in a deliberately plain model
+_NARX_BEFORE = {"stop_on": "one_step", "patience": 1, "bounds": None}
+_ESN_BEFORE = {"relaxation": 0.0, "relaxation_gain": False, "input_connectivity": 0.1, "tune_in": 100, "bounds": None}
+
+
+def pre_issue_14(model: dict[str, Any], columns: list[str]) -> dict[str, Any]:
+    """``model`` with the defaults it was written against pinned (the given parameters win)."""
+    params = dict(model.get("params") or {})
+    if model["family"] == "narx":
+        before = dict(_NARX_BEFORE)
+        if "degree" not in params and "terms" not in params:
+            before["degree"] = 2
+        if "lags" not in params and "terms" not in params:
+            before["lags"] = {**{c: [0, 1, 2] for c in columns[:-1]}, columns[-1]: [1, 2]}
+        params = before | params
+    elif model["family"] == "esn" and "weights" not in params:
+        params = _ESN_BEFORE | params
+    return {**model, "params": params}
 
 
 NARX3 = {"family": "narx", "params": {"degree": 3}}
@@ -221,6 +248,87 @@ def unreliable(seed: int, n: int = 4000) -> Case:
     return Case("unreliable-model", {"u": u, "y": y}, model, {"spectral_radius": value})
 
 
+def duffing(u: np.ndarray, dt: float, omega: float, zeta: float, k3: float, substeps: int = 4) -> np.ndarray:
+    """Displacement of x'' + 2 zeta omega x' + omega^2 x + k3 x^3 = u (a Duffing oscillator, the Silverbox's
+    structure), classical Runge-Kutta with ``substeps`` steps per sample, the input held over a sample."""
+    h = dt / substeps
+    x = v = 0.0
+    out = np.empty(len(u))
+
+    def acc(x: float, v: float, f: float) -> float:
+        return f - 2.0 * zeta * omega * v - omega * omega * x - k3 * x * x * x
+
+    for t, f in enumerate(u):
+        for _ in range(substeps):
+            k1x, k1v = v, acc(x, v, f)
+            k2x, k2v = v + 0.5 * h * k1v, acc(x + 0.5 * h * k1x, v + 0.5 * h * k1v, f)
+            k3x, k3v = v + 0.5 * h * k2v, acc(x + 0.5 * h * k2x, v + 0.5 * h * k2v, f)
+            k4x, k4v = v + h * k3v, acc(x + h * k3x, v + h * k3v, f)
+            x += h / 6.0 * (k1x + 2 * k2x + 2 * k3x + k4x)
+            v += h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v)
+        out[t] = x
+    return out
+
+
+def output_nonlinearity(seed: int, n: int = 6000) -> Case:
+    """A Duffing oscillator driven by band-limited noise; the cubic stiffness at the output's rms level is a
+    random 30-100 % of the linear one. The default narx (degree 2) cannot form x^3."""
+    rng = np.random.default_rng(seed)
+    st = 1.0 / 600.0
+    f0 = float(rng.uniform(30.0, 60.0))
+    omega, zeta = 2 * np.pi * f0, float(rng.uniform(0.05, 0.15))
+    u = signal.lfilter(*signal.butter(4, float(rng.uniform(0.15, 0.3))), rng.standard_normal(n))
+    u *= omega**2 / u.std()  # a static displacement of order 1
+    x_lin = duffing(u, st, omega, zeta, 0.0)
+    strength = float(rng.uniform(0.3, 1.0))
+    k3 = strength * omega**2 / x_lin.var()
+    y = duffing(u, st, omega, zeta, k3)
+    y += 0.001 * y.std() * rng.standard_normal(n)
+    return Case(
+        "output-nonlinearity",
+        {"u": u, "y": y},
+        {"family": "narx"},
+        {"f0": f0, "zeta": zeta, "strength": strength},
+        sampling_time=st,
+    )
+
+
+def missing_dynamics(seed: int, n: int = 6000) -> Case:
+    """A fourth-order linear system (two real poles and a damped complex pair, drawn at random) and the
+    default narx, whose lags (inputs 0-2, outputs 1-2) allow a second-order model only."""
+    rng = np.random.default_rng(seed)
+    p1, p2 = float(rng.uniform(0.75, 0.92)), float(rng.uniform(0.3, 0.6))
+    r, theta = float(rng.uniform(0.6, 0.8)), float(rng.uniform(0.3, 0.8))
+    den = np.poly([p1, p2, r * np.exp(1j * theta), r * np.exp(-1j * theta)]).real
+    num = np.array([0.0, 1.0, float(rng.uniform(-0.5, 0.5))])
+    u = rng.standard_normal(n)
+    y = signal.lfilter(num, den, u)
+    y += 0.01 * y.std() * rng.standard_normal(n)
+    return Case(
+        "missing-dynamics",
+        {"u": u, "y": y},
+        {"family": "narx"},
+        {"poles": [p1, p2, r, theta]},
+        sampling_time=0.01,
+    )
+
+
+def structure_stopped_early(seed: int, n: int = 6000) -> Case:
+    """The NARX system of eq. 3.37 with a second, slower input path, and a narx model whose user-set
+    threshold stops Fast Orthogonal Search after a few terms (each further term explains less than the
+    threshold's share of y'y, yet together they matter)."""
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    g = float(rng.uniform(0.3, 0.6))
+    y = narx_system(u) + g * signal.lfilter([0.0, 0.0, 1.0], [1.0, -0.5], u)
+    threshold = float(rng.uniform(0.01, 0.03))
+    model = {
+        "family": "narx",
+        "params": {"degree": 2, "lags": {"u": [0, 1, 2, 3], "y": [1, 2, 3]}, "threshold": threshold, "patience": 50},
+    }
+    return Case("structure-stopped-early", {"u": u, "y": y}, model, {"threshold": threshold, "gain": g})
+
+
 def clean_narx(seed: int, n: int = 6000) -> Case:
     rng = np.random.default_rng(seed)
     u = rng.standard_normal(n)
@@ -248,10 +356,13 @@ def clean_noisy_linear(seed: int, n: int = 6000) -> Case:
 
 
 def clean_esn(seed: int, n: int = 4000) -> Case:
-    """The NARX system and a reliable echo state network (internal mode, leaky elements)."""
+    """The NARX system and a reliable echo state network of 200 elements (internal mode, leaky elements):
+    free-run NMSE about 0.15 %. (With 100 elements the NMSE is about 0.4 % and half of that residual is a
+    nonlinear function of the output, b0 / (1 + |y|) of eq. 3.37, that a larger network removes: the
+    diagnosis names output-nonlinearity there, rightly, so that network is no adequate model.)"""
     rng = np.random.default_rng(seed)
     u = rng.standard_normal(n)
-    model = {"family": "esn", "params": {"size": 100, "relaxation": [0.0, 0.5], "relaxation_gain": True}}
+    model = {"family": "esn", "params": {"size": 200, "relaxation": [0.0, 0.5], "relaxation_gain": True}}
     return Case("adequate", {"u": u, "y": narx_system(u)}, model)
 
 
@@ -277,11 +388,63 @@ def dahl_generator_spec(seed: int, n: int = 10000) -> tuple[dict[str, Any], dict
             "split": dict(SPLIT),
             "noise": {"std": 0.01, "splits": ["train", "validation", "test"]},
         },
-        "model": FIR_X | {"params": {"lags": {"position": [0, 1, 2]}, "degree": 2}},
+        "model": pre_issue_14(
+            FIR_X | {"params": {"lags": {"position": [0, 1, 2]}, "degree": 2}}, ["position", "force"]
+        ),
         "seed": 0,
     }
     return spec, {"coulomb": fc}
 
+
+def gms_friction(seed: int, n: int) -> tuple[np.ndarray, np.ndarray, float, np.random.Generator]:
+    """GMS friction (the `gms` generator of issue 7's simulators) along a random position of 1 mm std over
+    0.05-5 Hz: sliding with many reversals; (position, force, sampling time, the seed's generator)."""
+    from dynmodel import registry
+
+    gen = registry.source("gms")
+    rng = np.random.default_rng(seed)
+    params = gen.Params.model_validate({"trajectory": {"kind": "random", "std": 1e-3, "band": [0.05, 5.0]}})
+    x, force = gen.generate(params, n, rng)
+    return x[:, 0], force[:, 0], float(params.sampling_time), rng
+
+
+#: the default network a new user fits first
+DEFAULT_ESN = {"family": "esn"}
+
+
+def masked_drift(seed: int, n: int = 8000) -> Case:
+    """GMS friction with a sensor drift of random size (30-60 % of the force's std) and time constant (10-40 %
+    of the record), fitted by the default echo state network: the direction dependence of friction dominates
+    the residual."""
+    x, force, st, rng = gms_friction(seed, n)
+    t = np.arange(n) * st
+    tau = float(rng.uniform(0.1, 0.4)) * t[-1]
+    size = float(rng.uniform(0.3, 0.6)) * force.std()
+    force = force + size * (1 - np.exp(-t / tau))
+    return Case(
+        "sensor-drift",
+        {"position": x, "force": force},
+        DEFAULT_ESN,
+        {"tau": tau, "size": size, "slope": 0.0},
+        sampling_time=st,
+    )
+
+
+def masked_delay(seed: int, n: int = 8000) -> Case:
+    """GMS friction plus a delayed path of the position (lag 50-200 samples, 30-60 % of the force's std),
+    fitted by the default echo state network. (The position's own correlation time is about 50 samples: a
+    shorter delay is partly what the network forms from the position's recent history.)"""
+    x, force, st, rng = gms_friction(seed, n)
+    lag, gain = int(rng.integers(50, 200)), float(rng.uniform(0.3, 0.6))
+    xs = (x - x.mean()) / x.std()
+    force = force.copy()
+    force[lag:] += gain * force.std() * xs[:-lag]
+    return Case(
+        "missing-delay", {"position": x, "force": force}, DEFAULT_ESN, {"lag": lag, "gain": gain}, sampling_time=st
+    )
+
+
+MASKED: dict[str, Callable[[int], Case]] = {"sensor-drift": masked_drift, "missing-delay": masked_delay}
 
 HIDDEN: dict[str, Callable[[int], Case]] = {
     "sensor-drift": sensor_drift,
@@ -293,6 +456,9 @@ HIDDEN: dict[str, Callable[[int], Case]] = {
     "static-nonlinearity": static_nonlinearity,
     "insufficient-memory": insufficient_memory,
     "unreliable-model": unreliable,
+    "output-nonlinearity": output_nonlinearity,
+    "missing-dynamics": missing_dynamics,
+    "structure-stopped-early": structure_stopped_early,
 }
 CLEAN: dict[str, Callable[[int], Case]] = {
     "narx-system": clean_narx,

@@ -13,7 +13,8 @@ from dynmodel import engine
 from dynmodel.anneal import Schedule, anneal, relative_improvement
 from dynmodel.spec import load_spec
 from dynmodel_plugins.annealed_rnn import AnnealedRnnParams
-from dynmodel_plugins.annealed_rnn.search import NetState, grow, make_moves
+from dynmodel_plugins.annealed_rnn.search import grow, make_moves
+from dynmodel_plugins.esn.network import Network
 
 # ------------------------------------------------------------------ the optimizer
 
@@ -92,13 +93,8 @@ def test_interruption_returns_the_best_so_far():
 def _state(rng, m=20):
     C = np.where(rng.random((m, m)) < 0.2, rng.standard_normal((m, m)), 0.0)
     C *= 0.9 / np.linalg.norm(C, 2)
-    return NetState(
-        C,
-        np.where(rng.random((m, 1)) < 0.5, 1.0, 0.0),
-        np.zeros((m, 0)),
-        rng.standard_normal(m),
-        rng.uniform(0, 0.9, m),
-    )
+    a = rng.uniform(0, 0.9, m)
+    return Network(C, np.where(rng.random((m, 1)) < 0.5, 1.0, 0.0), np.zeros((m, 0)), rng.standard_normal(m), a, 1 - a)
 
 
 def test_moves_change_the_structure_as_named_and_keep_sigma_below_the_bound():

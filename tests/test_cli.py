@@ -30,7 +30,7 @@ def test_fit_predict_inspect_round_trip(cli, tmp_path, quick_spec):
     for header in ("split", "NMSE %", "MAX", "train", "validation", "test"):
         assert header in r.stdout
     report = json.loads((tmp_path / "fit.json").read_text())
-    assert set(report) == {"metrics", "model"}
+    assert set(report) == {"metrics", "model", "assessment"} and report["assessment"] == []
     assert set(report["metrics"]) == {"train", "validation", "test"}
     assert set(report["metrics"]["test"]) >= {"nmse", "max", "samples", "nmse_1"}
     assert report["metrics"]["test"]["nmse"] < 0.1  # external ESN on the NARX system
@@ -42,13 +42,20 @@ def test_fit_predict_inspect_round_trip(cli, tmp_path, quick_spec):
     assert r.exit_code == 0, r.stderr
     pred = np.loadtxt(tmp_path / "pred.csv", delimiter=",", skiprows=1)
     model = dynmodel.load(report["model"])
-    np.testing.assert_allclose(pred[:, 1], model.predict(u, y_tune=y[: model.warmup])[:, 0], rtol=1e-9, atol=1e-12)
-    assert (tmp_path / "pred.csv").read_text().splitlines()[0] == "t,y"
+    warm = model.warmup
+    free = model.predict(u, y_tune=y[:warm])[:, 0]
+    np.testing.assert_allclose(pred[warm:, 1], free[warm:], rtol=1e-9, atol=1e-12)
+    # the tune-in rows hold the measured outputs the model was fed, marked in column 'measured'
+    assert (tmp_path / "pred.csv").read_text().splitlines()[0] == "t,y,measured"
+    np.testing.assert_array_equal(pred[:warm, 2], 1.0)
+    np.testing.assert_array_equal(pred[warm:, 2], 0.0)
+    np.testing.assert_allclose(pred[:warm, 1], y[:warm], rtol=1e-9)
+    assert "the first 20 rows are the measured tune-in" in r.stderr
 
     r = cli("inspect", report["model"], "--json", tmp_path / "inspect.json")
     assert r.exit_code == 0 and "sigma(C)" in r.stdout and "esn" in r.stdout
     summary = json.loads((tmp_path / "inspect.json").read_text())
-    assert summary["model"]["mode"] == "external" and summary["tune_in_samples"] == 100
+    assert summary["model"]["mode"] == "external" and summary["tune_in_samples"] == 20  # the default tune-in
 
 
 def test_out_overrides_the_spec_output(cli, tmp_path, quick_spec):
@@ -62,11 +69,13 @@ def test_external_model_asks_for_tune_in_outputs(cli, tmp_path, quick_spec):
     write_csv(tmp_path / "only_u.csv", {"u": u})
     r = cli("predict", tmp_path / "quick.h5", "--input", tmp_path / "only_u.csv")
     assert r.exit_code == 2
-    assert "tunes in on the first 100 measured samples of output column(s) 'y'" in r.stderr
+    assert "tunes in on the first 20 measured samples of output column(s) 'y'" in r.stderr  # the default tune-in
     assert "--tune-in" in r.stderr and "Traceback" not in r.stderr + r.stdout
     write_csv(tmp_path / "tune.csv", {"y": narx(500, 3)[1]})
     r = cli("predict", tmp_path / "quick.h5", "--input", tmp_path / "only_u.csv", "--tune-in", tmp_path / "tune.csv")
     assert r.exit_code == 0 and len(r.stdout.splitlines()) == 501
+    r = cli("predict", tmp_path / "quick.h5", "--input", tmp_path / "only_u.csv", "--tune-in", tmp_path / "nope.csv")
+    assert "nope.csv: tune-in file not found" in _one_line_error(r)
 
 
 def test_plugins_schema_validate_generate(cli, tmp_path):

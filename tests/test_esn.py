@@ -182,3 +182,31 @@ def test_refinement_on_noisy_training_data():
     for level in (0.2, 0.5, 1.0):
         assert table[level]["mse_inf"].mean() < table[level]["mse1"].mean()
     assert table[0.0]["mse_inf"].mean() <= table[0.0]["mse1"].mean() * 1.02
+
+
+def test_the_output_is_clipped_outside_the_training_inputs(tmp_path):
+    """Driven far outside its training inputs, a readout with direct links extrapolates without limit;
+    the default clip (eq. 6.25 for networks) holds the output within the training range +- half its
+    width, in the internal mode and, fed back clipped, in the external mode."""
+    u, y = narx(3000, 4)
+    write_csv(tmp_path / "d.csv", {"u": u, "y": y})
+    base = {"data": {"path": "d.csv", "input": ["u"], "output": ["y"], "split": {"train": 0.8, "validation": 0.2}}}
+    lo, hi = y[:2400].min(), y[:2400].max()
+    wide = 20 * narx(500, 5)[0]
+    for mode in ("internal", "external"):
+        clipped = _fit({**base, "model": {"family": "esn", "params": {"size": 60, "mode": mode}}}, tmp_path)
+        free = _fit(
+            {**base, "model": {"family": "esn", "params": {"size": 60, "mode": mode, "bounds": None}}}, tmp_path
+        )
+        tune = y[: clipped.warmup] if clipped.warmup else None
+        pred = clipped.predict(wide, y_tune=tune)[:, 0]
+        assert np.isfinite(pred).all()
+        assert pred.min() >= lo - 0.5 * (hi - lo) - 1e-9 and pred.max() <= hi + 0.5 * (hi - lo) + 1e-9
+        assert np.abs(pred).max() > hi  # it does reach the clip here
+        unclipped = free.run(wide, tune)
+        assert unclipped.diverged_at is not None or np.nanmax(np.abs(unclipped.y)) > hi + 0.5 * (hi - lo)
+        # inside the training range the clip changes nothing
+        np.testing.assert_allclose(
+            clipped.predict(u[:500], y_tune=tune)[:, 0], free.predict(u[:500], y_tune=tune)[:, 0], rtol=1e-12
+        )
+        assert clipped.family.warmup == (20 if mode == "external" else 0)  # the default tune-in fits a 20-sample window

@@ -20,13 +20,15 @@ def test_issue_examples_validate_with_resolved_defaults():
     gen_spec = load_spec(ROOT / "specs/examples/generator-example.yaml")
     assert gen_spec.data.split.test == (10000, 20000)
     params = gen_spec.model.params
-    # defaults of the thesis 5.3.2 networks
+    # defaults: the thesis 5.3.2 networks, with the input reaching half the elements and leaky elements (issue 14)
     assert (params.size, params.connectivity, params.input_connectivity, params.bias_connectivity) == (
         200,
         0.01,
-        0.1,
+        0.5,
         0.8,
     )
+    assert params.relaxation == (0.0, 0.99) and params.relaxation_gain and params.bounds == 0.5
+    assert params.tune_in == 20
     assert params.scale.by == "singular" and params.scale.value == 0.95
     resolved = gen_spec.resolved()
     assert resolved["model"]["params"]["connectivity"] == 0.01
@@ -137,3 +139,13 @@ def test_json_schema_shows_every_family_and_generator_parameter():
         "transient",
     ]:
         assert needle in schema, needle
+
+
+def test_a_spec_without_cost_takes_its_familys_default_cost():
+    data = {"generator": "narx-system", "n": 500}
+    narx_spec_ = validate_spec({"data": data, "model": {"family": "narx"}})
+    esn_spec = validate_spec({"data": data, "model": {"family": "esn"}})
+    assert narx_spec_.cost == "mse_inf" and esn_spec.cost == "mse1"  # narx is estimated where it is used: free run
+    assert validate_spec({"data": data, "model": {"family": "narx"}, "cost": "mse1"}).cost == "mse1"
+    resolved = narx_spec_.resolved()
+    assert resolved["cost"] == "mse_inf" and validate_spec(resolved).resolved() == resolved

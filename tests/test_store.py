@@ -103,3 +103,33 @@ def test_round_trip_keeps_everything(tmp_path, model):
     for key in a[0]:
         np.testing.assert_array_equal(a[0][key], b[0][key])
     assert a[1] == b[1]
+
+
+def test_a_model_built_in_python_loads(tmp_path):
+    """The family's parameters come from the family, not from the spec (a model assembled in Python has
+    no spec that names them: this failed with "corrupt model file (KeyError: 'model')")."""
+    from conftest import narx
+
+    from dynmodel.data import Dataset, Preprocessor, Recording, training_data
+    from dynmodel.model import FittedModel, evaluate
+    from dynmodel_plugins.narx import Narx
+
+    u, y = narx(1200, 5)
+    ds = Dataset([Recording("r", u[:, None], y[:, None])], {"train": [(0, 0, 900)], "validation": [(0, 900, 1200)]}, 0, ["u"], ["y"], 1.0)  # fmt: skip
+    pre = Preprocessor.fit(ds, [], "standard")
+    td = training_data(ds, pre)
+    family = Narx(degree=2, lags={"u": [0, 1], "y": [1, 2]}).fit(td)
+    model = FittedModel(family, pre, td.output_bounds(), spec={})
+    model.metrics, _ = evaluate(model, ds)
+    loaded = store.load(store.save(model, tmp_path / "m.h5"))
+    assert loaded.family.params == family.params
+    np.testing.assert_array_equal(loaded.predict(u, y[:2]), model.predict(u, y[:2]))
+
+
+def test_files_without_family_params_read_them_from_the_spec(tmp_path, model):
+    path = store.save(model, tmp_path / "m.h5")
+    with h5py.File(path, "a") as f:
+        assert json.loads(f.attrs["family_params"])["size"] == 50
+        del f.attrs["family_params"]  # as written before the attribute existed
+    loaded = store.load(path)
+    assert loaded.family.params == model.family.params

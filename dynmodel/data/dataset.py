@@ -3,12 +3,19 @@
 A *recording* is one continuous series: states and free runs restart at its first sample.
 Each split is a list of ``(recording, start, stop)`` ranges; the ``transient`` samples at the
 start of every range are excluded from fitting and scoring; scores pool over recordings.
+
+Split keys: ``train``, ``validation``, and for test sets ``test`` (a single unnamed one) or
+``test:<name>`` (each named one). A validation or test split with an initialization window
+(benchmark protocols) has recordings of its own: the first ``window`` samples of each may
+initialize the model and are not scored; with ``score_all`` every sample is scored.
 """
 
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -18,9 +25,16 @@ from .. import registry
 from ..errors import DataError, SpecError
 from ..spec import SPLITS
 from . import resample
+from .checks import check_signals
 from .readers import read_columns
 
 Range = tuple[int, int, int]  # (recording index, start, stop)
+_SPLIT_PREFIX = re.compile(r"^(validation|test(:[A-Za-z][A-Za-z0-9_-]*)?):")
+
+
+def is_test(split: str) -> bool:
+    """Is ``split`` a test split key (``test`` or ``test:<name>``)?"""
+    return split == "test" or split.startswith("test:")
 
 
 @dataclass
@@ -30,10 +44,20 @@ class Recording:
     name: str
     u: np.ndarray  # (n, n_inputs)
     y: np.ndarray  # (n, n_outputs)
+    #: first sample of this recording in its file (a segment of a longer file starts later)
+    offset: int = 0
+    #: the source's own column names (a separate test file may name its columns differently)
+    input_columns: list[str] | None = None
+    output_columns: list[str] | None = None
 
     @property
     def n(self) -> int:
         return self.u.shape[0]
+
+    def span(self, start: int, stop: int) -> str:
+        """``file[start:stop]`` with sample indices of the file (not of the segment)."""
+        base = self.name.rsplit("[", 1)[0] if self.offset or self.name.endswith("]") else self.name
+        return f"{base}[{self.offset + start}:{self.offset + stop}]"
 
 
 @dataclass
@@ -44,21 +68,44 @@ class Dataset:
     input_names: list[str]
     output_names: list[str]
     sampling_time: float
-    noise_std: dict[str, np.ndarray] = field(default_factory=dict)
     transient_at: str = "segment"
+    #: initialization window per split key (validation and test splits of a protocol)
+    windows: dict[str, int] = field(default_factory=dict)
+    #: split keys scored on every sample (no window, no transient, no measured start)
+    score_all: set[str] = field(default_factory=set)
+    #: the source's reporting units per output: {output: (scale, name)} (benchmark sources)
+    units: dict[str, tuple[float, str]] = field(default_factory=dict)
+    #: per split key: unscored samples at the start of each recording, simulated from the input alone (a
+    #: steady-state test period preceded by a copy of itself)
+    lead_in: dict[str, int] = field(default_factory=dict)
 
     def splits(self) -> list[str]:
-        return [s for s in SPLITS if self.ranges.get(s)]
+        """Split keys with samples: train, validation, then the test sets in the spec's order."""
+        fixed = [s for s in ("train", "validation") if self.ranges.get(s)]
+        return fixed + [s for s in self.ranges if s not in ("train", "validation") and self.ranges[s]]
+
+    def source_names(self) -> list[str]:
+        """The recordings' sources for a summary line: names without the split prefix and sample ranges."""
+        names = [re.sub(r"(\[\d*:\d*\])+$", "", _SPLIT_PREFIX.sub("", r.name)) for r in self.recordings]
+        return list(dict.fromkeys(names))
+
+    def test_splits(self) -> list[str]:
+        """The test split keys: ``test`` or ``test:<name>`` for each named test set."""
+        return [s for s in self.splits() if is_test(s)]
 
     def scored(self, split: str, warmup: int = 0) -> list[Range]:
-        """Ranges of ``split`` without the transient (and without ``warmup`` samples at recording starts)."""
+        """Ranges of ``split`` without the transient and the initialization window (and without
+        ``warmup`` samples at recording starts); every sample for a ``score_all`` split."""
         out = []
         for rec, start, stop in self.ranges.get(split, []):
-            if self.transient_at == "segment":
-                first = start + self.transient
-            else:  # only the recording's first samples, where the state restarts
-                first = max(start, self.transient)
-            first = max(first, warmup)
+            if split in self.score_all:
+                first = start + self.lead_in.get(split, 0)
+            else:
+                if self.transient_at == "segment":
+                    first = start + self.transient
+                else:  # only the recording's first samples, where the state restarts
+                    first = max(start, self.transient)
+                first = max(first, warmup, start + self.windows.get(split, 0), start + self.lead_in.get(split, 0))
             if first < stop:
                 out.append((rec, first, stop))
         return out
@@ -95,7 +142,7 @@ class Dataset:
         lo, hi = train.min(axis=0), train.max(axis=0)
         width = np.maximum(hi - lo, np.finfo(float).tiny)
         found = []
-        for split in ("validation", "test"):
+        for split in self.splits()[1:]:
             for j, name in enumerate(self.input_names):
                 worst = (0.0, -1, -1)
                 for rec, start, stop in self.ranges.get(split, []):
@@ -107,10 +154,11 @@ class Dataset:
                     if excess[k] > worst[0]:
                         worst = (float(excess[k]), rec, start + k)
                 if worst[0] > margin:
+                    columns = self.recordings[worst[1]].input_columns
                     found.append(
                         {
                             "split": split,
-                            "input": name,
+                            "input": columns[j] if columns else name,
                             "excess": worst[0],
                             "recording": self.recordings[worst[1]].name,
                             "sample": worst[2],
@@ -151,37 +199,66 @@ def _check_finite(arr: np.ndarray, names: list[str], where: str) -> None:
         )
 
 
+def _read_recording(p: Any, src: dict[str, Any], resolve) -> tuple[np.ndarray, np.ndarray | None, Path, str]:
+    """One file (or an {input, output} pair of files) of a file source: the input and output columns
+    side by side, the time column (None without one), the path for messages and the recording's name."""
+    inputs, outputs = [str(s).strip() for s in src["input"]], [str(s).strip() for s in src["output"]]
+    time_col = src.get("time_column")
+    extra = [time_col] if time_col is not None else []
+    opts = {"header": src.get("header", True), "columns": src.get("columns"), "delimiter": src.get("delimiter")}
+    if isinstance(p, dict):  # the input columns in one file, the output columns in another
+        in_path, out_path = resolve(p["input"]), resolve(p["output"])
+        icols = read_columns(in_path, list(src["input"]) + extra, **opts)
+        ocols = read_columns(out_path, list(src["output"]), **opts)
+        n_in, n_out = len(next(iter(icols.values()))), len(next(iter(ocols.values())))
+        if n_in != n_out:
+            raise DataError(
+                f"the input file {in_path.name} has {n_in} samples and the output file {n_out}",
+                str(out_path),
+                "pair the input and output files of one recording",
+            )
+        columns = [icols[k] for k in inputs] + [ocols[k] for k in outputs]
+        t = icols[str(time_col).strip()] if time_col is not None else None
+        return np.column_stack(columns).astype(np.float64), t, in_path, f"{in_path.name}/{out_path.name}"
+    path = resolve(p)
+    cols = read_columns(path, list(src["input"]) + list(src["output"]) + extra, **opts)
+    data = np.column_stack([cols[k] for k in inputs + outputs]).astype(np.float64)
+    return data, (cols[str(time_col).strip()] if time_col is not None else None), path, path.name
+
+
 def _file_recordings(src: dict[str, Any], resolve) -> tuple[list[Recording], float | None]:
     """The recordings of a file source, and the sampling time its time column gives (None without one)."""
     paths = src["path"] if isinstance(src["path"], list) else [src["path"]]
     selectors = list(src["input"]) + list(src["output"])
     n_in = len(src["input"])
-    time_col = src.get("time_column")
     recs: list[Recording] = []
     steps: list[tuple[float, str]] = []
     for p in paths:
-        path = resolve(p)
-        wanted = selectors + ([time_col] if time_col is not None else [])
-        cols = read_columns(
-            path, wanted, header=src.get("header", True), columns=src.get("columns"), delimiter=src.get("delimiter")
-        )
-        data = np.column_stack([cols[str(s).strip()] for s in selectors]).astype(np.float64)
+        data, t, path, label = _read_recording(p, src, resolve)
         names = [str(s) for s in selectors]
         _check_finite(data, names, str(path))
-        if time_col is not None:
-            t = cols[str(time_col).strip()] * float(src.get("time_unit") or 1.0)
-            data, step = resample.uniform(t, data, src.get("resample"), str(path))
+        if t is not None:
+            data, step = resample.uniform(t * float(src.get("time_unit") or 1.0), data, src.get("resample"), str(path))
             steps.append((step, str(path)))
         segments = src.get("segments") or [(0, data.shape[0])]
-        for k, (a, b) in enumerate(segments):
+        for a, b in segments:
             if not 0 <= a < b <= data.shape[0]:
                 raise DataError(
                     f"segment [{a}, {b}] lies outside the file's {data.shape[0]} samples",
                     str(path),
                     "correct data.segments",
                 )
-            name = path.name if len(segments) == 1 else f"{path.name}[{a}:{b}]"
-            recs.append(Recording(name, data[a:b, :n_in].copy(), data[a:b, n_in:].copy()))
+            name = label if len(segments) == 1 and (a, b) == (0, data.shape[0]) else f"{label}[{a}:{b}]"
+            recs.append(
+                Recording(
+                    name,
+                    data[a:b, :n_in].copy(),
+                    data[a:b, n_in:].copy(),
+                    offset=int(a),
+                    input_columns=names[:n_in],
+                    output_columns=names[n_in:],
+                )
+            )
     if not steps:
         return recs, None
     first, where = steps[0]
@@ -250,9 +327,10 @@ SOURCE_KEYS = (
 )
 
 
-def _merge_source(main: dict[str, Any], override: dict[str, Any], split: str) -> dict[str, Any]:
-    """A separate recording: the main source's keys, replaced by those given under data.<split>."""
-    given = {k: v for k, v in override.items() if v is not None}
+def _merge_source(main: dict[str, Any], override: dict[str, Any], split: str, index: int = 0) -> dict[str, Any]:
+    """A separate recording: the main source's keys, replaced by those given under data.<split>
+    (``index``: the position of a named test set, which offsets a generator's default seed)."""
+    given = {k: v for k, v in override.items() if v is not None and k in SOURCE_KEYS}
     base = {k: main.get(k) for k in SOURCE_KEYS if main.get(k) is not None}
     if "path" in given:
         base.pop("generator", None)
@@ -273,7 +351,7 @@ def _merge_source(main: dict[str, Any], override: dict[str, Any], split: str) ->
         and merged.get("generator") == main.get("generator")
         and merged.get("params") == main.get("params")
     ):
-        merged["seed"] = int(main.get("seed", 0)) + {"validation": 1, "test": 2}[split] * 1000
+        merged["seed"] = int(main.get("seed", 0)) + {"validation": 1, "test": 2}[split] * 1000 + index
     return merged
 
 
@@ -314,30 +392,197 @@ def _split_bounds(split: dict[str, Any], n: int) -> dict[str, tuple[int, int]]:
     return bounds
 
 
-def load_dataset(spec) -> Dataset:
-    """Read or generate every recording of ``spec.data`` and lay out the splits."""
+@dataclass
+class _Separate:
+    """A separate validation or test set: its recordings and what the spec and the protocol say of it."""
+
+    key: str
+    recordings: list[Recording]
+    window: int | None = None  # the test set's own init_window (spec)
+    score: str | None = None  # the test set's own score (spec)
+    protocol_window: int | None = None  # the benchmark protocol's window
+    protocol_all: bool = False  # the benchmark protocol scores every sample
+    lead_in: int = 0  # unscored samples at the start of each recording (a steady-state lead-in)
+
+
+#: recordings of one source with its sampling time, input names and output names
+LoadedSource = tuple[list[Recording], float, list[str], list[str]]
+
+
+def _check_separate(what: str, loaded: LoadedSource, main: LoadedSource, where: str) -> None:
+    """A separate recording must have the main data's channels and sampling time."""
+    _, st_s, ins, outs = loaded
+    _, st, in_names, out_names = main
+    if len(ins) != len(in_names) or len(outs) != len(out_names):
+        raise DataError(
+            f"the separate {what} recording has {len(ins)} inputs / {len(outs)} outputs, "
+            f"the main data {len(in_names)} / {len(out_names)}",
+            where,
+            "select the same input and output columns",
+        )
+    if abs(st_s - st) > resample.SAME_STEP * st:
+        raise DataError(
+            f"the separate {what} recording is sampled every {st_s}, the main data every {st}",
+            f"{where}.sampling_time",
+            "resample to a common sampling time",
+        )
+
+
+def _in_memory_sources(sources: Mapping[str, LoadedSource], source: str) -> list[_Separate]:
+    """Separate validation / test recordings given in memory (the Python API's arrays)."""
+    out = []
+    for key in ("validation", "test"):
+        if key in sources:
+            _check_separate(key, sources[key], sources["data"], f"{source}: data.{key}")
+            out.append(_Separate(key, list(sources[key][0])))
+    return out
+
+
+def _separate_sources(data: dict[str, Any], resolve, source: str, main: LoadedSource) -> list[_Separate]:
+    """The separate validation and test recordings of a file or generator source."""
+    wanted: list[tuple[str, dict[str, Any], str, int]] = []
+    if data.get("validation"):
+        wanted.append(("validation", data["validation"], "data.validation", 0))
+    test = data.get("test")
+    if isinstance(test, dict):
+        wanted.append(("test", test, "data.test", 0))
+    elif isinstance(test, list):
+        wanted += [(f"test:{t['name']}", t, f"data.test[{i}]", i) for i, t in enumerate(test)]
+    out: list[_Separate] = []
+    for key, override, where, index in wanted:
+        src = _merge_source(data, override, "validation" if key == "validation" else "test", index)
+        loaded = _load_source(src, resolve, where)
+        what = "validation" if key == "validation" else f"test set '{key[5:]}'" if ":" in key else "test"
+        _check_separate(what, loaded, main, f"{source}: {where}")
+        recs = loaded[0]
+        out.append(_Separate(key, recs, override.get("init_window"), override.get("score")))
+    return out
+
+
+def _benchmark_sources(data: dict[str, Any], bench) -> list[_Separate]:
+    """The test sets of a benchmark source (those named in data.test, in that order, else all)."""
+    chosen = bench.tests
+    if data.get("test"):
+        by_name = {t.name: t for t in bench.tests}
+        chosen = [by_name[n] for n in data["test"] if n in by_name]
+    return [
+        _Separate(
+            "test" if t.name is None else f"test:{t.name}",
+            t.recordings,
+            protocol_window=t.window,
+            protocol_all=t.score_all,
+            lead_in=t.lead_in,
+        )
+        for t in chosen
+    ]
+
+
+def _load_benchmark(data: dict[str, Any], resolve):
+    bench = registry.benchmark(str(data["benchmark"]))
+    return bench.load(resolve(str(data["root"])))
+
+
+def _protocol(
+    data: dict[str, Any], spec, bench, separate: list[_Separate], keys: list[str]
+) -> tuple[dict[str, int], set[str]]:
+    """Initialization windows and score-everything splits per validation / test key.
+
+    Precedence: a named test set's own ``init_window`` / ``score``, then ``evaluation.score: all``, then
+    ``data.init_window``, then the benchmark's protocol; without any, no window (scored as before)."""
+    iw = data.get("init_window")
+    per = {"validation": iw, "test": iw} if isinstance(iw, int) else dict(iw or {})
+    own = {s.key: s for s in separate}
+    global_all = spec.evaluation.score == "all"
+    windows: dict[str, int] = {}
+    every: set[str] = set()
+    for key in keys:
+        base = "validation" if key == "validation" else "test"
+        sep = own.get(key, _Separate(key, []))
+        w_proto, all_proto = sep.protocol_window, sep.protocol_all
+        if key == "validation" and bench is not None:
+            w_proto, all_proto = bench.window, bench.score_all
+        explicit = sep.window if sep.window is not None else per.get(base)
+        if sep.score is not None:
+            score_all = sep.score == "all"
+        elif global_all:
+            score_all = True
+        elif explicit is not None:
+            score_all = False
+        else:
+            score_all = all_proto
+        window = explicit if explicit is not None else w_proto
+        if score_all:
+            every.add(key)
+        elif window is not None:
+            windows[key] = int(window)
+    return windows, every
+
+
+def _own_runs(recordings: list[Recording], ranges: dict[str, list[Range]], keys: set[str]) -> None:
+    """Give every range of these splits that starts inside a recording a recording of its own, so
+    that its free run starts at its first sample (initialized from its own window)."""
+    for key in keys:
+        moved = []
+        for rec, a, b in ranges.get(key, []):
+            if a > 0:
+                r = recordings[rec]
+                recordings.append(
+                    replace(r, name=f"{r.name}[{a}:{b}]", u=r.u[a:b].copy(), y=r.y[a:b].copy(), offset=r.offset + a)
+                )
+                moved.append((len(recordings) - 1, 0, b - a))
+            else:
+                moved.append((rec, a, b))
+        ranges[key] = moved
+
+
+def _check_units(spec, out_names: list[str]) -> None:
+    for name in spec.evaluation.units:
+        if name not in out_names:
+            raise SpecError(
+                f"'{name}' is not an output", f"{spec.source}: evaluation.units", f"the outputs are {out_names}"
+            )
+
+
+def load_dataset(spec, sources: Mapping[str, LoadedSource] | None = None) -> Dataset:
+    """Read or generate every recording of ``spec.data`` and lay out the splits.
+
+    ``sources`` replaces the reading with recordings already in memory (the Python API's arrays):
+    ``"data"`` for the main source, optionally ``"validation"`` / ``"test"`` for separate recordings;
+    the spec's own sources are then not read, everything else (splits, transient, noise) applies."""
     data = spec.data.model_dump(mode="python")
     resolve = spec.resolve_path
-    main_recs, st, in_names, out_names = _load_source(data, resolve, "data")
+    bench = None
+    if sources:
+        main_recs, st, in_names, out_names = sources["data"]
+        separate = _in_memory_sources(sources, spec.source)
+    elif data.get("benchmark") is not None:
+        bench = _load_benchmark(data, resolve)
+        main_recs, st, in_names, out_names = bench.train, bench.sampling_time, bench.input_names, bench.output_names
+        separate = _benchmark_sources(data, bench)
+    else:
+        main_recs, st, in_names, out_names = _load_source(data, resolve, "data")
+        separate = _separate_sources(data, resolve, spec.source, (main_recs, st, in_names, out_names))
+    _check_units(spec, out_names)
     recordings: list[Recording] = list(main_recs)
     ranges: dict[str, list[Range]] = {s: [] for s in SPLITS}
 
-    separate = {s: data.get(s) for s in ("validation", "test") if data.get(s)}
+    given = {"validation" if s.key == "validation" else "test" for s in separate}
     split = data.get("split")
     if split is None:
         split = {"train": 0.6, "validation": 0.2, "test": 0.2}
-        if "test" in separate and "validation" in separate:
+        if "test" in given and "validation" in given:
             split = {"train": 1.0}
-        elif "test" in separate:
+        elif "test" in given:
             split = {"train": 0.8, "validation": 0.2}
-        elif "validation" in separate:
+        elif "validation" in given:
             split = {"train": 0.8, "test": 0.2}
-    for s in separate:
+    for s in given:
         if split.get(s) is not None:
+            where = "the benchmark's test sets" if bench is not None else f"a separate data.{s} source"
             raise SpecError(
-                f"the {s} split is given twice: in data.split and as a separate data.{s} source",
+                f"the {s} split is given twice: in data.split and as {where}",
                 f"{spec.source}: data.split.{s}",
-                "remove one of them",
+                "remove it from data.split",
             )
     if split.get("train") is None:
         raise SpecError(
@@ -355,38 +600,31 @@ def load_dataset(spec) -> Dataset:
             if b > a:
                 ranges[s].append((i, a, b))
 
-    for s, override in separate.items():
-        src = _merge_source(data, override, s)
-        recs, st_s, ins, outs = _load_source(src, resolve, f"data.{s}")
-        if len(ins) != len(in_names) or len(outs) != len(out_names):
-            raise DataError(
-                f"the separate {s} recording has {len(ins)} inputs / {len(outs)} outputs, "
-                f"the main data {len(in_names)} / {len(out_names)}",
-                f"{spec.source}: data.{s}",
-                "select the same input and output columns",
-            )
-        if abs(st_s - st) > resample.SAME_STEP * st:
-            raise DataError(
-                f"the separate {s} recording is sampled every {st_s}, the main data every {st}",
-                f"{spec.source}: data.{s}.sampling_time",
-                "resample to a common sampling time",
-            )
-        for rec in recs:
-            rec.name = f"{s}:{rec.name}"
+    for sep in separate:
+        for rec in sep.recordings:
+            rec = replace(rec, name=f"{sep.key}:{rec.name}")
             recordings.append(rec)
-            ranges[s].append((len(recordings) - 1, 0, rec.n))
+            ranges.setdefault(sep.key, []).append((len(recordings) - 1, 0, rec.n))
 
+    keys = [k for k, v in ranges.items() if v and k != "train"]
+    windows, every = _protocol(data, spec, bench, separate, keys)
+    _own_runs(recordings, ranges, set(windows) | every)
     ds = Dataset(
         recordings,
         {k: v for k, v in ranges.items() if v},
         int(data.get("transient", 0)),
-        in_names,
-        out_names,
+        list(in_names),
+        list(out_names),
         st,
         transient_at=data.get("transient_at", "segment"),
+        windows=windows,
+        score_all=every,
+        units=dict(bench.units) if bench is not None else {},
+        lead_in={s.key: s.lead_in for s in separate if s.lead_in},
     )
     _add_noise(ds, data.get("noise"), spec.seed)
     _check_sizes(ds, spec.source)
+    check_signals(ds, spec.source)
     return ds
 
 
@@ -401,13 +639,20 @@ def _add_noise(ds: Dataset, noise: dict[str, Any] | None, seed: int) -> None:
         for rec, start, stop in ds.ranges.get(split, []):
             r = ds.recordings[rec]
             r.y[start:stop] += noise["std"] * clean_std[rec] * rng.standard_normal((stop - start, r.y.shape[1]))
-    ds.noise_std = {s: np.asarray(noise["std"]) for s in noise["splits"]}
 
 
 def _check_sizes(ds: Dataset, source: str) -> None:
     for split, rngs in ds.ranges.items():
         if ds.n_scored(split) == 0:
             longest = max(stop - start for _, start, stop in rngs)
+            window = ds.windows.get(split, 0)
+            if window >= longest:
+                raise DataError(
+                    f"the {split} split has no sample left after the initialization window of {window} "
+                    f"(its longest recording has {longest} samples)",
+                    f"{source}: data.init_window",
+                    "lower the window or enlarge the split",
+                )
             raise DataError(
                 f"the {split} split has no sample left after the transient of {ds.transient} "
                 f"(its longest segment has {longest} samples)",
@@ -431,7 +676,7 @@ def describe(ds: Dataset) -> list[dict[str, Any]]:
         rows.append(
             {
                 "split": split,
-                "segments": [f"{ds.recordings[r].name}[{a}:{b}]" for r, a, b in ds.ranges[split]],
+                "segments": [ds.recordings[r].span(a, b) for r, a, b in ds.ranges[split]],
                 "samples": sum(b - a for _, a, b in ds.ranges[split]),
                 "scored": ds.n_scored(split),
             }

@@ -1,6 +1,10 @@
 """Read named columns from measured-data files: CSV/text, NPZ, HDF5 and MATLAB .mat.
 
-A column selector is a name (CSV header entry, NPZ key, HDF5 dataset path, MAT variable),
+The format is taken from the file's content (HDF5, ZIP/NPZ and MATLAB signatures; text otherwise),
+the suffix only deciding where the content does not; a file whose content and suffix disagree is
+read by its content with a note. Text files may be UTF-8 (with or without BOM), UTF-16 or Latin-1
+(read with a note), with any common delimiter; decimal commas are read when the delimiter is not a
+comma. A column selector is a name (CSV header entry, NPZ key, HDF5 dataset path, MAT variable),
 optionally with a 0-based column index for 2-D arrays: ``"q[1]"``. Headerless text files
 are read with ``header: false`` and either ``columns: [names...]`` or integer selectors.
 """
@@ -9,15 +13,20 @@ from __future__ import annotations
 
 import csv
 import re
+import warnings
+import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DataError
+from ..textfiles import DataNote, decode_text
 
 _SELECTOR = re.compile(r"^(?P<name>.+?)\[(?P<col>\d+)\]$")
 TEXT_SUFFIXES = {".csv", ".txt", ".tsv", ".dat"}
+HDF5_SUFFIXES = {".h5", ".hdf5", ".hdf"}
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
 
 
 def _split_selector(sel: str | int) -> tuple[str, int | None]:
@@ -84,13 +93,14 @@ def read_text(
     delimiter: str | None = None,
 ) -> dict[str, np.ndarray]:
     """Read selected columns of a delimited text file into float64 arrays."""
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        lines = fh.read().splitlines()
+    text, _ = decode_text(_read_bytes(path), str(path))
+    lines = text.lstrip("\ufeff").splitlines()
     lines = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise DataError("the file is empty", str(path), "point data.path to a file with samples")
     delim = delimiter or _sniff_delimiter(lines[:20])
     whitespace = delim in (None, " ")
+    decimal_comma = False
 
     def split(line: str) -> list[str]:
         if whitespace:
@@ -128,6 +138,16 @@ def read_text(
     out = {key: np.empty(len(body)) for key, _ in wanted}
     for row, line in enumerate(body):
         cells = split(line)
+        if header and len(cells) > len(names) and any(c.strip() for c in cells[len(names) :]):
+            comma = delim == "," and any(c.strip().isdigit() for c in cells)
+            raise DataError(
+                f"line {row + first_data_line} has {len(cells)} fields but the header names {len(names)}",
+                str(path),
+                "the file seems to use decimal commas with comma separators: export it with ';' as separator or "
+                "with decimal points"
+                if comma
+                else "fix that line (or set delimiter: in the spec)",
+            )
         for key, col in wanted:
             text = cells[col].strip() if col < len(cells) else ""
             if not text:
@@ -136,9 +156,19 @@ def read_text(
                     str(path),
                     "fill or remove that line",
                 )
+            if decimal_comma:
+                text = text.replace(",", ".")
             try:
                 out[key][row] = float(text)
             except ValueError:
+                if not decimal_comma and delim != "," and _DECIMAL_COMMA.match(text):
+                    decimal_comma = True
+                    warnings.warn(DataNote(f"{path}: decimal commas read as decimal points"), stacklevel=2)
+                    try:
+                        out[key][row] = float(text.replace(",", "."))
+                        continue
+                    except ValueError:
+                        pass
                 raise DataError(
                     f"column '{key}' holds '{text}' at line {row + first_data_line}, which is not a number",
                     str(path),
@@ -149,15 +179,61 @@ def read_text(
     return out
 
 
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise DataError(
+            f"cannot read the file ({(exc.strerror or str(exc)).lower()})", str(path), "check its permissions"
+        ) from None
+
+
 def read_npz(path: Path, selectors: Sequence[str]) -> dict[str, np.ndarray]:
-    with np.load(path, allow_pickle=False) as z:
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise DataError(
+            f"not a readable .npz archive ({_first_sentence(exc)})",
+            str(path),
+            "save the arrays with numpy.savez(path, u=..., y=...)",
+        ) from None
+    if not hasattr(z, "files"):  # a single .npy array
+        raise DataError(
+            "holds a single NumPy array, not named arrays",
+            str(path),
+            "save the columns by name with numpy.savez(path, u=..., y=...)",
+        )
+    with z:
         out = {}
         for sel in selectors:
             name, col = _split_selector(sel)
             if name not in z.files:
                 raise _missing(path, name, z.files)
-            out[str(sel)] = _as_column(z[name], col, path, name)
+            try:
+                arr = z[name]
+            except ValueError as exc:
+                if "allow_pickle" in str(exc) or "Object arrays" in str(exc):
+                    raise DataError(
+                        f"'{name}' is an object array (pickled Python objects), which dynmodel never loads",
+                        str(path),
+                        f"save '{name}' as numbers, e.g. numpy.savez(path, {name}=numpy.asarray(values, dtype=float))",
+                    ) from None
+                raise DataError(
+                    f"'{name}' cannot be read ({_first_sentence(exc)})", str(path), "save the arrays again"
+                ) from None
+            except (OSError, EOFError, zipfile.BadZipFile) as exc:
+                raise DataError(
+                    f"'{name}' cannot be read ({_first_sentence(exc)})",
+                    str(path),
+                    "the archive is damaged; save it again",
+                ) from None
+            out[str(sel)] = _as_column(arr, col, path, name)
     return out
+
+
+def _first_sentence(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text.split(". ")[0].rstrip(".")
 
 
 def read_hdf5(path: Path, selectors: Sequence[str]) -> dict[str, np.ndarray]:
@@ -166,8 +242,16 @@ def read_hdf5(path: Path, selectors: Sequence[str]) -> dict[str, np.ndarray]:
     try:
         fh = h5py.File(path, "r")
     except OSError as exc:
-        raise DataError(f"not a readable HDF5 file ({exc})", str(path), "check the file") from None
+        raise DataError(
+            f"not a readable HDF5 file ({_first_sentence(exc)})", str(path), "the file is damaged or not HDF5"
+        ) from None
     with fh:
+        if fh.attrs.get("format") == "dynmodel-model":
+            raise DataError(
+                "is a dynmodel model file, not measured data",
+                str(path),
+                "point the data path at the measured data (run a model on new data with `dynmodel predict`)",
+            )
         datasets: list[str] = []
         fh.visititems(lambda n, o: datasets.append(n) if isinstance(o, h5py.Dataset) else None)
         out = {}
@@ -187,8 +271,10 @@ def read_mat(path: Path, selectors: Sequence[str]) -> dict[str, np.ndarray]:
         mat = scipy.io.loadmat(path)
     except NotImplementedError:  # MATLAB v7.3 files are HDF5
         return read_hdf5(path, selectors)
-    except Exception as exc:
-        raise DataError(f"not a readable MATLAB file ({exc})", str(path), "check the file") from None
+    except Exception as exc:  # noqa: BLE001 - scipy raises many kinds for a damaged file
+        raise DataError(
+            f"not a readable MATLAB file ({_first_sentence(exc)})", str(path), "save it again from MATLAB"
+        ) from None
     names = [k for k in mat if not k.startswith("__")]
     out = {}
     for sel in selectors:
@@ -207,24 +293,46 @@ def read_columns(
     columns: Sequence[str] | None = None,
     delimiter: str | None = None,
 ) -> dict[str, np.ndarray]:
-    """Read the selected columns of ``path``; the format follows the file suffix."""
+    """Read the selected columns of ``path``; the format follows the file's content (see the module)."""
     if not path.exists():
         raise DataError(
             "file not found", str(path), "check data.path (relative paths resolve against the spec file's folder)"
         )
     if not path.is_file():
         raise DataError("is not a file", str(path), "point data.path to a data file")
-    suffix = path.suffix.lower()
-    if suffix in TEXT_SUFFIXES:
-        cols = read_text(path, selectors, header=header, columns=columns, delimiter=delimiter)
-    elif suffix == ".npz":
-        cols = read_npz(path, [str(s) for s in selectors])
-    elif suffix in {".h5", ".hdf5", ".hdf"}:
-        cols = read_hdf5(path, [str(s) for s in selectors])
-    elif suffix == ".mat":
-        cols = read_mat(path, [str(s) for s in selectors])
-    else:
-        raise DataError(f"unsupported file type '{suffix}'", str(path), "use .csv/.txt/.tsv, .npz, .h5/.hdf5 or .mat")
+    fmt = sniff_format(path)
+    by_suffix = _suffix_format(path.suffix.lower())
+    if fmt == "binary" and by_suffix in ("mat", "npz", "hdf5"):
+        fmt = by_suffix  # let the format's own reader name the damage
+    if fmt == "binary":
+        from ..paths import describe_file
+
+        raise DataError(
+            f"cannot read {describe_file(path)} as data",
+            str(path),
+            "export the data as CSV, NPZ, HDF5 or MATLAB .mat",
+        )
+    mismatch = by_suffix is not None and fmt != by_suffix
+    if mismatch:
+        from ..paths import describe_file
+
+        looks = describe_file(path)
+        warnings.warn(DataNote(f"{path}: named {path.suffix} but holds {looks}; read as such"), stacklevel=2)
+    try:
+        if fmt == "text":
+            cols = read_text(path, selectors, header=header, columns=columns, delimiter=delimiter)
+        elif fmt == "npz":
+            cols = read_npz(path, [str(s) for s in selectors])
+        elif fmt == "hdf5":
+            cols = read_hdf5(path, [str(s) for s in selectors])
+        else:
+            cols = read_mat(path, [str(s) for s in selectors])
+    except DataError as exc:
+        if not mismatch:
+            raise
+        raise DataError(
+            f"named {path.suffix} but holds {looks}, read as such: {exc.what}", exc.where, exc.fix
+        ) from None
     lengths = {k: len(v) for k, v in cols.items()}
     if len(set(lengths.values())) > 1:
         detail = ", ".join(f"{k}: {n}" for k, n in lengths.items())
@@ -232,3 +340,76 @@ def read_columns(
             f"selected columns differ in length ({detail})", str(path), "select columns recorded on the same time grid"
         )
     return cols
+
+
+def _suffix_format(suffix: str) -> str | None:
+    if suffix in TEXT_SUFFIXES:
+        return "text"
+    if suffix == ".npz":
+        return "npz"
+    if suffix in HDF5_SUFFIXES:
+        return "hdf5"
+    if suffix == ".mat":
+        return "mat"
+    return None
+
+
+def sniff_format(path: Path) -> str:
+    """The format by content: 'hdf5', 'npz', 'mat', 'text' or 'binary' (anything else)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError as exc:
+        raise DataError(
+            f"cannot read the file ({(exc.strerror or str(exc)).lower()})", str(path), "check its permissions"
+        ) from None
+    signature = b"\x89HDF\r\n\x1a\n"
+    if head.startswith(b"MATLAB 7.3") or (head.startswith(b"MATLAB") and head[512:520] == signature):
+        return "hdf5"
+    if head.startswith(signature) or head[512:520] == signature:
+        return "hdf5"
+    if head.startswith(b"MATLAB"):
+        return "mat"
+    if head.startswith((b"PK\x03\x04", b"PK\x05\x06")):
+        return "npz" if (b".npy" in head or path.suffix.lower() == ".npz") else "binary"
+    if head.startswith(b"\x93NUMPY"):
+        return "npz"
+    from ..textfiles import detect_encoding, looks_binary
+
+    if detect_encoding(head) is not None or not looks_binary(head):
+        return "text"
+    return "binary"
+
+
+def list_columns(path: Path, *, header: bool = True, delimiter: str | None = None) -> list[str]:
+    """The names :func:`read_columns` accepts for ``path`` (header entries, NPZ keys, HDF5 dataset
+    paths, MAT variables); an empty list when the file cannot be read."""
+    try:
+        fmt = sniff_format(path)
+        if fmt == "text":
+            text, _ = decode_text(_read_bytes(path), str(path))
+            first = next(
+                (ln for ln in text.lstrip("\ufeff").splitlines() if ln.strip() and not ln.lstrip().startswith("#")), ""
+            )
+            if not header or not first:
+                return []
+            delim = delimiter or _sniff_delimiter([first])
+            cells = first.split() if delim in (None, " ") else next(csv.reader([first], delimiter=delim))
+            return [c.strip() for c in cells]
+        if fmt == "npz":
+            with np.load(path, allow_pickle=False) as z:
+                return list(z.files)
+        if fmt == "hdf5":
+            import h5py
+
+            names: list[str] = []
+            with h5py.File(path, "r") as fh:
+                fh.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) else None)
+            return names
+        if fmt == "mat":
+            import scipy.io
+
+            return [k for k in scipy.io.loadmat(path) if not k.startswith("__")]
+    except Exception:  # noqa: BLE001 - only a listing; reading reports the real problem
+        return []
+    return []

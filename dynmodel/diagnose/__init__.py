@@ -11,7 +11,7 @@ Detectors are plugins (entry-point group ``dynmodel.detectors``), see :mod:`.det
 
 from __future__ import annotations
 
-from .detector import Detector, Extension, Finding, Settings, rank
+from .detector import Detector, Extension, Finding, Judgement, Settings, rank
 from .runner import Diagnosis, diagnose
 
-__all__ = ["diagnose", "Diagnosis", "Detector", "Extension", "Finding", "Settings", "rank"]
+__all__ = ["diagnose", "Diagnosis", "Detector", "Extension", "Finding", "Judgement", "Settings", "rank"]

@@ -16,8 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from ..extensions import Extension, ExtensionContext, family_extensions, unique
 from ..family import Progress, no_progress
-from .detector import Settings
+from .detector import Judgement, Settings
 from .fitting import Fit, Fitter
 
 DIAGNOSIS_SPLITS = ("train", "validation")
@@ -165,12 +166,38 @@ class Context:
         return float(np.var(y)) if y.size else 0.0
 
     # ------------------------------------------------------------------ the rule
-    def judge(self, p_value: float, share: float, k: int) -> bool:
+    def effect(self, share: float, k: int) -> float:
+        """The share of the residual mean square as a fraction of the output variance."""
+        return float(share * self.mse(k) / max(self.output_var(k), np.finfo(float).tiny))
+
+    def judge(
+        self, p_value: float, share: float, k: int, gates: dict[str, tuple[bool, str]] | None = None
+    ) -> Judgement:
         """Significant: p < alpha, and the cause accounts for at least ``min_share`` of the residual mean
-        square and for at least ``min_effect`` of the output variance."""
+        square and for at least ``min_effect`` of the output variance, and every detector-specific gate
+        (name -> (passed, what failed)) passes. The verdict carries every value and threshold."""
         s = self.settings
-        effect = share * self.mse(k) / max(self.output_var(k), np.finfo(float).tiny)
-        return bool(p_value < s.alpha and share >= s.min_share and effect >= s.min_effect)
+        effect = self.effect(share, k)
+        p_value = float(p_value)
+        failed = [text for ok, text in (gates or {}).values() if not ok]
+        if not p_value < s.alpha:
+            failed.append(f"p {_g(p_value)} >= alpha")
+        if not share >= s.min_share:
+            failed.append(f"share {share:.2g} < {s.min_share:g}")
+        if not effect >= s.min_effect:
+            failed.append(f"effect {effect:.2g} < {s.min_effect:g}")
+        values = {
+            "p_value": p_value,
+            "alpha": s.alpha,
+            "share": float(share),
+            "min_share": s.min_share,
+            "effect": effect,
+            "min_effect": s.min_effect,
+        }
+        values.update({name: bool(ok) for name, (ok, _) in (gates or {}).items()})
+        if failed:
+            return Judgement(False, ", ".join(failed), values)
+        return Judgement(True, f"p {_g(p_value)} < alpha, share {share:.2g}, effect {effect:.2g}", values)
 
     @property
     def max_lag(self) -> int:
@@ -185,8 +212,42 @@ class Context:
 
         return model_memory(self.fit, self.max_lag)
 
+    @cached_property
+    def references(self):
+        """The quick references (training mean, linear ARX/OE) of this dataset (:mod:`.reference`)."""
+        return self.fitter.references(self.ds)
+
+    @cached_property
+    def n_train(self) -> int:
+        return int(self.ds.n_scored("train", warmup=self.model.warmup))
+
+    def extension_context(self, evidence: dict[str, Any] | None = None) -> ExtensionContext:
+        """What the families' extension hooks read (docs/plugins-extensions.md)."""
+        return ExtensionContext.from_spec(
+            self.resolved,
+            self.input_names,
+            self.output_names,
+            self.sampling_time,
+            written=self.raw,
+            n_train=self.n_train,
+            memory=self.__dict__.get("memory"),
+            evidence=evidence,
+            fitted=self.model.family,
+        )
+
+    def extensions(
+        self, cause: str, evidence: dict[str, Any] | None = None, generic: list[Extension] | None = None
+    ) -> list[Extension]:
+        """``generic`` (data-side) extensions, then the families' own for ``cause`` (the spec's family first,
+        then switches to other installed families), without repeats."""
+        return unique(list(generic or []) + family_extensions(cause, self.extension_context(evidence)))
+
     def refit(self, patch: dict[str, Any], label: str = "") -> Fit:
         """Fit the spec with ``patch`` applied (cached, so a candidate measured later reuses it)."""
         from .patch import merge
 
         return self.fitter.fit(merge(self.raw, patch), label=label)
+
+
+def _g(p: float) -> str:
+    return "<1e-16" if p < 1e-16 else f"{p:.2g}"

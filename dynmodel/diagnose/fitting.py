@@ -60,6 +60,17 @@ class Fitter:
         self.progress = progress
         self._fits: dict[str, Fit] = {}
         self._data: dict[str, Dataset] = {}
+        self._references: dict[int, Any] = {}
+
+    def references(self, ds: Dataset):
+        """The quick references of a loaded dataset (:func:`.reference.references`), computed once."""
+        from .reference import references
+
+        key = id(ds)
+        if key not in self._references:
+            self.progress("reference", None, "mean and linear ARX/OE references")
+            self._references[key] = references(ds)
+        return self._references[key]
 
     def _data_key(self, spec) -> str:
         data = spec.data.model_dump(mode="json")

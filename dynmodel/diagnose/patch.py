@@ -11,32 +11,26 @@ import copy
 from pathlib import Path
 from typing import Any
 
+from ..extensions import merge
 from ..spec import validate_spec
 
-
-def merge(target: Any, patch: Any) -> Any:
-    """RFC 7396 merge of ``patch`` into a copy of ``target``."""
-    if not isinstance(patch, dict):
-        return copy.deepcopy(patch)
-    out = copy.deepcopy(target) if isinstance(target, dict) else {}
-    for key, value in patch.items():
-        if value is None:
-            out.pop(key, None)
-        else:
-            out[key] = merge(out.get(key), value)
-    return out
+__all__ = ["merge", "portable", "apply"]
 
 
 def portable(raw: dict[str, Any], base_dir: Path) -> dict[str, Any]:
     """The user's spec with data paths made absolute (so the written spec runs from any folder)."""
+    from ..spec import _resolve_paths
+
     out = copy.deepcopy(raw)
     data = out.get("data") or {}
-    for section in [data, data.get("test") or {}, data.get("validation") or {}]:
+    test = data.get("test")
+    tests = test if isinstance(test, list) else [test or {}]
+    for section in [data, *tests, data.get("validation") or {}]:
         p = section.get("path") if isinstance(section, dict) else None
-        if isinstance(p, str):
-            section["path"] = str(_absolute(p, base_dir))
-        elif isinstance(p, list):
-            section["path"] = [str(_absolute(x, base_dir)) for x in p]
+        if isinstance(p, (str, list, dict)):
+            section["path"] = _resolve_paths(p, lambda x: _absolute(x, base_dir))
+    if isinstance(data, dict) and isinstance(data.get("root"), str):
+        data["root"] = str(_absolute(data["root"], base_dir))
     return out
 
 

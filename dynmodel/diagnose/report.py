@@ -48,8 +48,10 @@ def extended_spec(result: Diagnosis, folder: Path) -> dict[str, Any] | None:
     raw = result.extended_spec
     if raw is None:
         return None
+    from ..paths import safe_name
+
     out = dict(raw)
-    name = f"{result.name}-extended"
+    name = f"{safe_name(result.name)}-extended"
     out["name"] = name
     out["output"] = str((folder / f"{name}.h5").resolve())
     return out
@@ -154,7 +156,7 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
     """index.md and the figures in ``folder``; returns the index path."""
     folder.mkdir(parents=True, exist_ok=True)
     base = result.baseline
-    checks = {f.cause: f for f in result.checks}
+    checks = {f.cause: f for f in result.checks if f.applicable}
     alpha = result.settings.alpha
     memory = result.rounds[0].memory
     drift = checks.get("sensor-drift")
@@ -203,6 +205,16 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
             + "."
         )
         lines.append("")
+    ref = (result.reference or {}).get("linear")
+    if ref:
+        nm = ", ".join(f"{k} {_fmt(v)} %" for k, v in ref["nmse"].items())
+        lines += [
+            f"Adequacy reference: a linear {ref['method']} model (output lags 1..{ref['output_order']}, input lags "
+            f"0..{ref['input_order'] - 1}) runs free with NMSE {nm}; the training mean gives "
+            + ", ".join(f"{k} {_fmt(v)} %" for k, v in (result.reference or {}).get("mean", {}).get("nmse", {}).items())
+            + ".",
+            "",
+        ]
     lines += ["## Findings", ""]
     if result.findings:
         lines += ["| # | cause | score | p | evidence | extension |", "|---|---|---|---|---|---|"]
@@ -211,6 +223,23 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
             lines.append(f"| {i} | `{f.cause}` | {f.score:.3g} | {_p(f.evidence)} | {f.summary} | {ext} |")
     else:
         lines.append("None significant.")
+    if len(result.rounds) > 1 or result.rounds[0].chosen is not None:
+        lines += [
+            "",
+            "## Rounds",
+            "",
+            "| round | named | extension applied | comparison NMSE % | test NMSE % |",
+            "|---|---|---|---|---|",
+        ]
+        for rnd in result.rounds:
+            g = rnd.gain()
+            named = ", ".join(f"`{f.cause}`" for f in rnd.significant) or "adequate"
+            ext = f"{g['extension']} (for `{g['cause']}`)" if g.get("extension") and rnd.accepted else "–"
+            cmp_ = f"{_fmt(g.get('nmse_before'))} → {_fmt(g.get('nmse_after'))}" if g.get("extension") else "–"
+            test = (
+                f"{_fmt(g.get('test_nmse_before'))} → {_fmt(g.get('test_nmse_after'))}" if g.get("extension") else "–"
+            )
+            lines.append(f"| {rnd.index} | {named} | {ext} | {cmp_} | {test} |")
     lines += [
         "",
         "Score: the share of the free-run residual's mean square the cause accounts for (1: the free run "
@@ -220,12 +249,14 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
         "",
         "### Every check",
         "",
-        "| cause | significant | score | p | summary |",
-        "|---|---|---|---|---|",
+        "| cause | named | score | p | why (not) named | summary |",
+        "|---|---|---|---|---|---|",
     ]
     for f in result.checks:
+        p = f.gates.get("p_value", f.evidence.get("p_value"))
         lines.append(
-            f"| `{f.cause}` | {'yes' if f.significant else 'no'} | {f.score:.3g} | {_p(f.evidence)} | {f.summary} |"
+            f"| `{f.cause}` | {'yes' if f.significant else 'no'} | {f.score:.3g} | "
+            f"{'–' if p is None else f'{p:.2g}'} | {f.reason} | {f.summary if f.applicable else '–'} |"
         )
     lines += [
         "",

@@ -1,13 +1,16 @@
-"""The diagnosis loop: fit the baseline, run every detector, measure the proposed extensions, keep the
-best on validation, measure the gain on the held-out test split, and optionally go another round.
+"""The diagnosis loop: fit the baseline, run every detector (and the core's adequacy reference), measure
+the proposed extensions, keep the best on validation, and go another round on the extended model,
+until nothing is significant (adequate), no candidate lowers the validation NMSE by at least
+``MIN_GAIN`` (relative), or after ``rounds`` (default 3). A cause masked by a larger one surfaces in a
+later round, once the larger one is fixed.
 
-An extension is measured by refitting the patched spec; candidates are compared on the free-run NMSE
-of the validation split (train when there is none), never on the test split's outputs, which only
-score the chosen model. A candidate whose free run diverges on some recording's *input* (test
-recordings included: the divergence band comes from the training outputs, so this screen uses no
-measured test output) ranks after every candidate that stays stable. A round stops the loop when
-nothing is significant (adequate), when no candidate lowers the validation NMSE by at least
-``MIN_GAIN`` (relative), or after ``rounds``.
+Candidates of a round: every extension of the named (highest-ranked) cause, then the first extension of
+each further significant cause, at most ``candidates`` in all. An extension is measured by refitting the
+patched spec; candidates are compared on the free-run NMSE of the validation split (train when there is
+none), never on the test split's outputs, which only score the chosen models (each round's test NMSE and
+the total gain are reported, never used to choose). A candidate whose free run diverges on some
+recording's *input* (test recordings included: the divergence band comes from the training outputs, so
+this screen uses no measured test output) ranks after every candidate that stays stable.
 """
 
 from __future__ import annotations
@@ -24,8 +27,9 @@ from .. import registry
 from ..errors import DynmodelError
 from ..family import Progress, no_progress
 from . import patch as patch_mod
+from .adequacy import InadequateStructure
 from .context import Context
-from .detector import Extension, Finding, Settings, rank
+from .detector import Extension, Finding, Settings, not_applicable, rank
 from .fitting import Fit, Fitter
 from .gain import measure_gain
 
@@ -71,6 +75,7 @@ class Round:
     accepted: bool = False
     outcome: str = ""
     seconds: float = 0.0
+    split: str = "validation"  # where the candidates were compared
 
     @property
     def significant(self) -> list[Finding]:
@@ -80,16 +85,42 @@ class Round:
     def verdict(self) -> str:
         return self.significant[0].cause if self.significant else "adequate"
 
+    def gain(self) -> dict[str, Any]:
+        """What this round's chosen extension did: the comparison split's NMSE before and after (it decided),
+        the test NMSE before and after (reported only)."""
+        out: dict[str, Any] = {"cause": None, "extension": None, "accepted": self.accepted}
+        if self.chosen is None or self.chosen.fit is None:
+            return out
+        after = self.chosen.fit
+        out.update(
+            cause=self.chosen.cause,
+            extension=self.chosen.extension.summary,
+            split=self.split,
+            nmse_before=_finite(self.fit.nmse(self.split)),
+            nmse_after=_finite(after.nmse(self.split)),
+            test_nmse_before=_test(self.fit, "nmse"),
+            test_nmse_after=_test(after, "nmse"),
+        )
+        out["relative_reduction"] = _reduction(out["test_nmse_before"], out["test_nmse_after"])
+        return out
+
     def to_json(self) -> dict[str, Any]:
         return {
             "round": self.index,
             "verdict": self.verdict,
+            "named": [f.cause for f in self.significant],
             "model_memory_samples": self.memory,
+            "metrics": self.fit.metrics,
             "findings": [f.to_json() for f in self.significant],
+            "checks": [
+                {"cause": f.cause, "significant": f.significant, "score": f.score, "reason": f.reason, "gates": f.gates}
+                for f in self.findings
+            ],
             "candidates": [c.to_json() for c in self.candidates],
             "chosen": None if self.chosen is None else self.chosen.to_json(),
             "accepted": self.accepted,
             "outcome": self.outcome,
+            "gain": self.gain(),
             "seconds": self.seconds,
         }
 
@@ -103,6 +134,7 @@ class Diagnosis:
     gain: dict[str, Any] | None
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
+    reference: dict[str, Any] | None = None  # the quick references of the data (mean, linear ARX/OE)
 
     @property
     def baseline(self) -> Fit:
@@ -120,6 +152,11 @@ class Diagnosis:
     @property
     def verdict(self) -> str:
         return self.rounds[0].verdict
+
+    @property
+    def named(self) -> list[tuple[int, str]]:
+        """(round, cause) of every cause named in any round, in order."""
+        return [(r.index, f.cause) for r in self.rounds for f in r.significant]
 
     @property
     def applied(self) -> list[Candidate]:
@@ -146,6 +183,7 @@ class Diagnosis:
         extended: dict[str, Any] = {"spec": self.extended_spec, "metrics": None if final is None else final.metrics}
         extended["extensions"] = [{"cause": c.cause, **c.extension.to_json()} for c in self.applied]
         extended["rounds"] = [r.to_json() for r in self.rounds]
+        extended["named"] = [{"round": i, "cause": c} for i, c in self.named]
         return {
             "baseline": {
                 "metrics": base.metrics,
@@ -154,21 +192,43 @@ class Diagnosis:
                 "cost": base.spec.cost,
                 "model_memory_samples": self.rounds[0].memory,
                 "checks": [f.to_json() for f in self.checks],
+                "reference": self.reference,
                 "settings": self.settings.to_json(),
                 "notes": self.notes,
                 "seconds": self.seconds,
             },
             "findings": [f.to_json() for f in self.findings],
             "extended": extended,
-            "gain": self.gain
-            if self.gain is not None
-            else {"test_nmse_before": _test(base, "nmse"), "test_nmse_after": None, "relative_reduction": None},
+            "gain": self._gain_json(),
         }
+
+    def _gain_json(self) -> dict[str, Any]:
+        gain = (
+            dict(self.gain)
+            if self.gain is not None
+            else {
+                "test_nmse_before": _test(self.baseline, "nmse"),
+                "test_nmse_after": None,
+                "relative_reduction": None,
+            }
+        )
+        gain["rounds"] = [r.gain() for r in self.rounds]
+        return gain
 
 
 def _test(fit: Fit, metric: str) -> float | None:
     m = fit.metrics.get("test") or {}
     return m.get(metric)
+
+
+def _finite(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
+
+
+def _reduction(before: float | None, after: float | None) -> float | None:
+    if before is None or after is None or before <= 0:
+        return None
+    return float(1.0 - after / before)
 
 
 def detect(
@@ -183,30 +243,68 @@ def detect(
             "provide more data (the diagnosis needs the free-running residual)",
         )
     findings = []
-    for cause, cls in registry.detectors().items():
+    table = dict(registry.detectors())
+    table.setdefault(InadequateStructure.cause, InadequateStructure)  # the core's own check, always run
+    for cause, cls in table.items():
         progress("detect", None, cause)
         found = cls().detect(ctx)
-        if found is not None:
-            found.cause = cause
-            findings.append(found)
+        if found is None:
+            found = not_applicable(cause, cls)
+        found.cause = cause
+        findings.append(found)
     memory = ctx.__dict__.get("memory")
     return rank(findings), memory
 
 
 def _candidates(findings: list[Finding], limit: int) -> list[tuple[str, Extension]]:
-    """Extensions of the named cause (then of the next findings) up to ``limit``, without repeats."""
+    """Every extension of the named cause, then the first extension of each further significant cause
+    (the ranking of two causes can be wrong; the validation split decides), at most ``limit``, no repeats."""
+    significant = [f for f in findings if f.significant and f.extensions]
+    if not significant:
+        return []
+    top, rest = significant[0], significant[1:]
+    picks = [(top.cause, ext) for ext in top.extensions]
+    others = [(f.cause, f.extensions[0]) for f in rest]
+    # keep room for the other causes' first proposals
+    room = max(1, limit - len(others))
+    ordered = picks[:room] + others + picks[room:]
     out, seen = [], set()
-    for f in findings:
-        if not f.significant:
-            continue
-        for ext in f.extensions:
-            key = repr(ext.patch)
-            if key not in seen:
-                seen.add(key)
-                out.append((f.cause, ext))
-        if out:
-            break  # the named cause's own extensions; a later round takes the next cause
+    for cause, ext in ordered:
+        key = repr(ext.patch)
+        if key not in seen:
+            seen.add(key)
+            out.append((cause, ext))
     return out[:limit]
+
+
+POOR = 50.0  # a comparison NMSE (%) from which "adequate" comes with a warning
+
+
+def _weak_note(rnd: Round, split: str) -> str:
+    """When nothing is significant but the model explains less than half of the output variance, say that the
+    checks lacked the power to tell what is missing, and which check came closest."""
+    nmse = rnd.fit.nmse(split)
+    if not np.isfinite(nmse) or nmse < POOR:
+        return ""
+    close = [f for f in rnd.findings if f.applicable and f.score >= 0.05]
+    hint = f"; closest: {close[0].cause} ({close[0].reason})" if close else ""
+    return (
+        f", but the model explains only {100 - nmse:.0f} % of the {split} output variance (NMSE {nmse:.3g} %): "
+        f"the data give the checks too little power to name what is missing{hint}"
+    )
+
+
+TIE = 0.01  # candidates within 1 % of the best validation NMSE count as equal: the earliest is kept
+
+
+def _best(candidates: list[Candidate], split: str) -> Candidate:
+    """The candidate with the lowest comparison NMSE among those that do not diverge; within ``TIE`` of it
+    the earliest (the named cause's own extensions come first)."""
+    top = min(candidates, key=lambda c: c.rank(split))
+    if not np.isfinite(top.score(split)):
+        return top
+    limit = top.score(split) * (1 + TIE)
+    return next(c for c in candidates if c.diverges == top.diverges and c.score(split) <= limit)
 
 
 def diagnose(
@@ -225,15 +323,15 @@ def diagnose(
         for index in range(1, max(1, settings.rounds) + 1):
             t0 = time.perf_counter()
             findings, memory = detect(current, settings, fitter, progress)
-            rnd = Round(index, current, findings, memory)
+            split = "validation" if "validation" in current.metrics else "train"
+            rnd = Round(index, current, findings, memory, split=split)
             rounds.append(rnd)
             cands = _candidates(findings, settings.candidates)
             if not rnd.significant:
-                rnd.outcome = "adequate: no cause is significant"
+                rnd.outcome = "adequate: no cause is significant" + _weak_note(rnd, split)
             elif not cands:
-                rnd.outcome = f"{rnd.verdict}: no extension this family can express"
+                rnd.outcome = f"{rnd.verdict}: no extension is offered for the significant causes"
             else:
-                split = "validation" if "validation" in current.metrics else "train"
                 for cause, ext in cands:
                     cand = Candidate(cause, ext)
                     try:
@@ -242,7 +340,7 @@ def diagnose(
                     except DynmodelError as exc:
                         cand.error = exc.line()
                     rnd.candidates.append(cand)
-                best = min(rnd.candidates, key=lambda c: c.rank(split))
+                best = _best(rnd.candidates, split)
                 now, new = current.nmse(split), best.score(split)
                 if best.fit is None:
                     rnd.outcome = "every extension failed to fit"
@@ -257,6 +355,7 @@ def diagnose(
             if not rnd.accepted:
                 break
         result = Diagnosis(raw.get("name", "model"), source, settings, rounds, None, 0.0, notes)
+        result.reference = fitter.references(rounds[0].fit.ds).to_json()
         if result.final is not None:
             progress("gain", None, "uncertainty of the test NMSE")
             result.gain = measure_gain(fitter, rounds[0].fit, result.final, settings)

@@ -53,15 +53,15 @@ def drive(indptr, indices, data, B, c0, a, g, V, x0):
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
-def drive_features(indptr, indices, data, B, c0, a, g, V, x0, direct, F):
-    """Like :func:`drive`, but writes readout features into the preallocated F (n, K):
-    ``[x_t, v_t (when direct), 1]``. Allocation-free: the hot loop of structure optimization."""
+def drive_chunk(indptr, indices, data, B, c0, a, g, V, x, direct, F):
+    """Readout features of the next ``n`` steps, written into the preallocated F (n, K):
+    ``[x_t, v_t (when direct)]``, driven by V (n, n_drive) from the state ``x`` (M,), which is
+    advanced in place to the last state. Chunk after chunk this equals one long :func:`drive`."""
     n = V.shape[0]
     m = c0.shape[0]
     nv = V.shape[1]
     z = np.empty(m)
-    prev = x0.copy()
-    last = F.shape[1] - 1
+    prev = x
     for t in range(n):
         _pre(indptr, indices, data, B, c0, prev, V[t], z)
         row = F[t]
@@ -69,38 +69,86 @@ def drive_features(indptr, indices, data, B, c0, a, g, V, x0, direct, F):
         if direct:
             for j in range(nv):
                 row[m + j] = V[t, j]
-        row[last] = 1.0
         prev = row[:m]
+    if n > 0:
+        x[:] = F[n - 1, :m]
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
-def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states):
-    """External-mode run: the network is fed its own past output.
+def drive_output(indptr, indices, data, B, c0, a, g, V, x, W, D, w0, out):
+    """Readout ``out[t] = W x_t + D v_t + w0`` (out (n, n_out)) of the network driven by V from
+    the state ``x`` (advanced in place); no state is stored (internal mode, teacher forcing)."""
+    n = V.shape[0]
+    m = c0.shape[0]
+    nv = V.shape[1]
+    n_out = W.shape[0]
+    z = np.empty(m)
+    prev = x.copy()
+    cur = np.empty(m)
+    for t in range(n):
+        _pre(indptr, indices, data, B, c0, prev, V[t], z)
+        _post(a, g, prev, z, cur)
+        for k in range(n_out):
+            acc = w0[k]
+            for i in range(m):
+                acc += W[k, i] * cur[i]
+            for j in range(nv):
+                acc += D[k, j] * V[t, j]
+            out[t, k] = acc
+        tmp = prev
+        prev = cur
+        cur = tmp
+    x[:] = prev
 
-    Drive ``v_t = [u_t, f_t]`` with feedback ``f_t``:
-      * ``t <= tune_in`` (tune-in): measured ``y_{t-1}`` (``y_0`` at t = 0);
-      * afterwards ``mix * y_{t-1} + (1 - mix) * yhat_{t-1}`` (``mix`` = 0: pure free run;
-        0 < mix < 1: the error-propagation schedule of thesis 6.3.2, needs all of ``Y``).
-    Output ``yhat_t = W x_t + D v_t + w0``. A run whose output leaves [lo, hi] (or is not
-    finite) after the tune-in stops; the remaining outputs are NaN and the sample index is
-    returned (else -1). Outputs during the tune-in are not fed back and are not checked.
 
-    Returns (states or empty array, yhat (n, n_out), feedback used (n, n_out), diverged_at).
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
+def free_run_span(
+    indptr,
+    indices,
+    data,
+    B,
+    c0,
+    a,
+    g,
+    U,
+    Y,
+    tune_in,
+    mix,
+    W,
+    D,
+    w0,
+    y_rest,
+    lo,
+    hi,
+    clip_lo,
+    clip_hi,
+    x,
+    start,
+    stop,
+    yhat,
+    fb,
+    X,
+):
+    """Samples ``start <= t < stop`` of the external-mode run of :func:`free_run_clipped`, resumable.
+
+    ``x`` (M,) holds the state after sample ``start - 1`` (the rest state when start = 0) and is
+    advanced in place; ``yhat`` and ``fb`` (n, n_out) are the whole run's outputs and fed-back
+    values (rows before ``start`` must hold the earlier samples); X (stop - start, M) receives the
+    states, or has no rows. On divergence at t, ``yhat[t:]`` and ``fb[t + 1:]`` become NaN and t is
+    returned (else -1). Outputs are clipped to [clip_lo, clip_hi] before they are stored, checked
+    and fed back (+-inf: no clipping). Spans run one after the other give exactly one
+    :func:`free_run_clipped`.
     """
-    n = U.shape[0]
     m = c0.shape[0]
     n_in = U.shape[1]
     n_out = W.shape[0]
     has_y = Y.shape[0] > 0
-    X = np.empty((n if store_states else 0, m))
-    yhat = np.full((n, n_out), np.nan)
-    fb = np.full((n, n_out), np.nan)
+    store = X.shape[0] > 0
     v = np.empty(n_in + n_out)
     z = np.empty(m)
-    prev = x0.copy()
+    prev = x.copy()
     cur = np.empty(m)
-    diverged = -1
-    for t in range(n):
+    for t in range(start, stop):
         for j in range(n_in):
             v[j] = U[t, j]
         for k in range(n_out):
@@ -114,8 +162,8 @@ def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y
             fb[t, k] = f
         _pre(indptr, indices, data, B, c0, prev, v, z)
         _post(a, g, prev, z, cur)
-        if store_states:
-            X[t] = cur
+        if store:
+            X[t - start] = cur
         bad = False
         for k in range(n_out):
             acc = w0[k]
@@ -123,18 +171,86 @@ def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y
                 acc += W[k, i] * cur[i]
             for j in range(n_in + n_out):
                 acc += D[k, j] * v[j]
+            if acc > clip_hi[k]:
+                acc = clip_hi[k]
+            elif acc < clip_lo[k]:
+                acc = clip_lo[k]
             yhat[t, k] = acc
             if t >= tune_in and not (lo[k] <= acc <= hi[k]):
                 bad = True
         if bad:
-            diverged = t
-            for k in range(n_out):
-                yhat[t, k] = np.nan
-            break
+            x[:] = cur
+            yhat[t:] = np.nan
+            fb[t + 1 :] = np.nan
+            return t
         tmp = prev
         prev = cur
         cur = tmp
+    x[:] = prev
+    return -1
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
+def free_run_clipped(
+    indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states, clip_lo, clip_hi
+):
+    """External-mode run: the network is fed its own past output.
+
+    Drive ``v_t = [u_t, f_t]`` with feedback ``f_t``:
+      * ``t <= tune_in`` (tune-in): measured ``y_{t-1}`` (``y_0`` at t = 0);
+      * afterwards ``mix * y_{t-1} + (1 - mix) * yhat_{t-1}`` (``mix`` = 0: pure free run;
+        0 < mix < 1: the error-propagation schedule of thesis 6.3.2, needs all of ``Y``).
+    Output ``yhat_t = W x_t + D v_t + w0``, clipped to [clip_lo, clip_hi] (eq. 6.25; the clipped
+    value is the one fed back). A run whose output leaves [lo, hi] (or is not
+    finite) after the tune-in stops; the remaining outputs are NaN and the sample index is
+    returned (else -1). Outputs during the tune-in are not fed back and are not checked.
+
+    Returns (states or empty array, yhat (n, n_out), feedback used (n, n_out), diverged_at).
+    """
+    n = U.shape[0]
+    m = c0.shape[0]
+    n_out = W.shape[0]
+    X = np.empty((n if store_states else 0, m))
+    yhat = np.full((n, n_out), np.nan)
+    fb = np.full((n, n_out), np.nan)
+    x = x0.copy()
+    diverged = free_run_span(
+        indptr,
+        indices,
+        data,
+        B,
+        c0,
+        a,
+        g,
+        U,
+        Y,
+        tune_in,
+        mix,
+        W,
+        D,
+        w0,
+        y_rest,
+        lo,
+        hi,
+        clip_lo,
+        clip_hi,
+        x,
+        0,
+        n,
+        yhat,
+        fb,
+        X,
+    )
     return X, yhat, fb, diverged
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")
+def free_run(indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states):
+    """:func:`free_run_clipped` without clipping."""
+    inf = np.full(W.shape[0], np.inf)
+    return free_run_clipped(
+        indptr, indices, data, B, c0, a, g, U, Y, tune_in, mix, W, D, w0, y_rest, lo, hi, x0, store_states, -inf, inf
+    )
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH, error_model="numpy")

@@ -13,19 +13,20 @@ prediction, persistence and the reliability hooks are those of the `esn` family.
 from __future__ import annotations
 
 import threading
-from typing import Any
+import warnings
+from typing import Any, Literal
 
 import numpy as np
 
 from dynmodel.anneal import Schedule, anneal, run_restarts
 from dynmodel.data.training import TrainingData
-from dynmodel.family import Progress, no_progress
+from dynmodel.family import Family, Progress, constructor_arguments, no_progress
 from dynmodel_plugins.esn.model import EchoStateNetwork
-from dynmodel_plugins.esn.network import build_network
-from dynmodel_plugins.esn.params import EsnParams, Scale
+from dynmodel_plugins.esn.network import Network, build_network
+from dynmodel_plugins.esn.params import EsnParams, Readout, Refinement, Scale
 
-from .params import AnnealedRnnParams
-from .search import Evaluator, NetState, grow, make_moves
+from .params import AnnealedRnnParams, Moves
+from .search import Evaluator, grow, make_moves
 
 
 class AnnealedRnn(EchoStateNetwork):
@@ -35,7 +36,40 @@ class AnnealedRnn(EchoStateNetwork):
 
     params: AnnealedRnnParams  # type: ignore[assignment]
 
-    def _initial_state(self, data: TrainingData, rng: np.random.Generator) -> NetState:
+    def __init__(
+        self,
+        *,
+        size: int = 60,
+        steps: int = 400,
+        mode: Literal["internal", "external"] = "internal",
+        connectivity: float = 0.06,
+        input_connectivity: float = 0.1,
+        bias_connectivity: float = 0.8,
+        input_scale: float = 1.0,
+        bias_scale: float = 1.0,
+        feedback_scale: float = 1.0,
+        initial_singular: float = 0.9,
+        max_singular: float = 0.95,
+        relaxation: float | tuple[float, float] = (0.0, 0.9),
+        relaxation_gain: bool = True,
+        step: float = 1.0,
+        t0: float = 0.1,
+        t_end: float = 1e-4,
+        moves: Moves | dict[str, float] | None = None,
+        grow: bool = False,
+        grow_by: int = 5,
+        max_size: int = 200,
+        patience: int = 100,
+        restarts: int = 1,
+        workers: int = 0,
+        tune_in: int = 100,
+        readout: Readout | dict[str, Any] | None = None,
+        refinement: Refinement | dict[str, Any] | None = None,
+    ) -> None:
+        """Parameters as in ``AnnealedRnnParams`` (the spec's ``model.params``); see the class help."""
+        Family.__init__(self, **constructor_arguments(locals()))
+
+    def _initial_state(self, data: TrainingData, rng: np.random.Generator) -> Network:
         p = self.params
         esn = EsnParams(
             size=p.size,
@@ -48,13 +82,13 @@ class AnnealedRnn(EchoStateNetwork):
             feedback_scale=p.feedback_scale,
             scale=Scale(by="singular", value=p.initial_singular),
             relaxation=p.relaxation,
+            relaxation_gain=p.relaxation_gain,
         )
-        net = build_network(esn, data.n_inputs, data.n_outputs, rng)
-        return NetState(net.C.toarray(), net.B_in, net.B_back, net.c0, net.a)
+        return build_network(esn, data.n_inputs, data.n_outputs, rng).dense()  # the moves edit a dense C
 
     def _search(
         self, data: TrainingData, drives: list[np.ndarray], rng: np.random.Generator, report, halt: threading.Event
-    ) -> tuple[NetState, float, list[dict[str, Any]], bool]:
+    ) -> tuple[Network, float, list[dict[str, Any]], bool]:
         """One annealing run, with growth stages when asked."""
         p = self.params
         evaluator = Evaluator(data, p, drives)
@@ -138,7 +172,13 @@ class AnnealedRnn(EchoStateNetwork):
             "best_run": k_best,
             "interrupted": any(r[3] for r in runs),
         }
-        self.network_ = best.network(p.relaxation_gain)
+        if self.search_["interrupted"]:
+            warnings.warn(
+                f"the annealing was interrupted (Ctrl-C): the model keeps the best network found so far "
+                f"(validation NMSE {100 * score:.4g} %), not the result of the full schedule",
+                stacklevel=2,
+            )
+        self.network_ = best.sparse()
         return self._fit_readout(data, cost, progress)
 
     def to_arrays(self):
@@ -164,3 +204,10 @@ class AnnealedRnn(EchoStateNetwork):
             if search.get("interrupted"):
                 info["annealing"] += " (interrupted: best network so far)"
         return info
+
+    # ------------------------------------------------------------------ extensions (docs/plugins-extensions.md)
+    @classmethod
+    def extensions(cls, cause, ctx):
+        from .extensions import extensions
+
+        return extensions(cause, ctx)

@@ -20,7 +20,7 @@ from dynmodel.diagnose.context import Context
 from dynmodel.diagnose.dependence import holdout_share, lagged
 from dynmodel.diagnose.detector import Detector, Extension, Finding
 
-from ._extend import NARX, with_inputs
+from ._extend import inputs_patch
 
 MAX_REVERSAL_RATE = 0.05
 DEADBAND = 0.005
@@ -42,6 +42,7 @@ class DirectionDependence(Detector):
     cause = "direction-dependence"
     description = "residual depends on the direction of motion or on the travel since the last reversal"
     priority = 6
+    applies = "an input that moves like a position (< 1 reversal per 20 samples)"
 
     def detect(self, ctx: Context) -> Finding | None:
         best = None
@@ -92,24 +93,18 @@ class DirectionDependence(Detector):
         )
         db = float(f"{deadband:.3g}")
         items = [{"direction": name, "deadband": db}, {"since_reversal": name, "deadband": db}]
-        extensions = [
-            Extension(
-                f"direction features of {name}: its direction of motion and travel since the last reversal as inputs",
-                with_inputs(ctx, derived=items, lags=[0] if ctx.family == NARX else None),
-            )
-        ]
-        if ctx.family == NARX:
-            extensions.append(
+        patch = inputs_patch(ctx, derived=items, history=0)
+        generic = (
+            [
                 Extension(
-                    "a dynamical family: a leaky echo state network (200 elements, eq. 6.21) driven by the input",
-                    _switch_to_esn(ctx),
+                    f"direction features of {name}: its direction of motion and travel since the last reversal as "
+                    "inputs",
+                    patch,
                 )
-            )
-        return self.finding(ctx, dep.share, significant, summary, evidence, extensions)
-
-
-def _switch_to_esn(ctx: Context) -> dict:
-    old = (ctx.raw.get("model") or {}).get("params") or {}
-    params = {key: None for key in old}
-    params.update(size=200, relaxation=[0.0, 0.9], relaxation_gain=True)
-    return {"model": {"family": "esn", "params": params}, "cost": "mse1"}
+            ]
+            if patch
+            else []
+        )
+        return self.finding(
+            ctx, dep.share, significant, summary, evidence, ctx.extensions(self.cause, evidence, generic)
+        )

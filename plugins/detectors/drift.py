@@ -19,7 +19,7 @@ from dynmodel.data.derived import time_function
 from dynmodel.diagnose.context import Context
 from dynmodel.diagnose.detector import Detector, Extension, Finding
 
-from ._extend import with_inputs
+from ._extend import inputs_patch
 
 BLOCKS = 60
 MIN_BLOCKS = 12
@@ -80,6 +80,7 @@ class SensorDrift(Detector):
     cause = "sensor-drift"
     description = "slow trend in the residual that the input does not explain (thesis 6.2.2)"
     priority = 3
+    applies = "at least 12 blocks of data"
 
     def detect(self, ctx: Context) -> Finding | None:
         best: Finding | None = None
@@ -185,7 +186,7 @@ class SensorDrift(Detector):
         extensions = [
             Extension(
                 f"a drift term in the output model: time inputs {', '.join(_name(fn) for fn in terms)}",
-                with_inputs(ctx, derived=derived, lags=[0]),
+                inputs_patch(ctx, derived=derived, history=0),
             ),
             Extension(
                 f"detrend the output by {', '.join(_name(fn) for fn in terms)} (fitted on the training data, "
@@ -193,7 +194,10 @@ class SensorDrift(Detector):
                 {"data": {"detrend": terms}},
             ),
         ]
-        return self.finding(ctx, share, significant, summary, evidence, extensions)
+        extensions = [x for x in extensions if x.patch]
+        return self.finding(
+            ctx, share, significant, summary, evidence, ctx.extensions(self.cause, evidence, extensions)
+        )
 
 
 def _name(fn) -> str:

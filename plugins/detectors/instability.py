@@ -17,9 +17,17 @@ from __future__ import annotations
 import numpy as np
 
 from dynmodel.diagnose.context import Context
-from dynmodel.diagnose.detector import Detector, Finding
+from dynmodel.diagnose.detector import Detector, Finding, Judgement
 
-from ._extend import stabilizers
+from ._extend import free_running_cost
+
+
+def stabilizers(ctx: Context, evidence: dict) -> list:
+    """Free-run stabilisation (thesis 6.3.2): free-running estimation with error propagation, then the
+    family's own (terms chosen on the free-running error, bounds, ridge, internal mode, ...)."""
+    generic = free_running_cost(ctx, "error propagation when the least-squares model diverges, thesis 6.3.2")
+    return ctx.extensions("free-run-instability", evidence, generic)
+
 
 GROWTH = 0.5  # range widths beyond the measured output range
 LOST = 90.0  # free-run NMSE (%) of a run that has lost track
@@ -53,10 +61,10 @@ class FreeRunInstability(Detector):
                     return self.finding(
                         ctx,
                         1.0,
-                        True,
+                        Judgement.fixed(True, f"diverges ({split} split)"),
                         f"the free run diverges at sample {k} (t = {k * st:.6g} s) of '{name}' ({split} split)",
                         evidence,
-                        stabilizers(ctx),
+                        stabilizers(ctx, evidence),
                     )
         measured = np.concatenate(
             [
@@ -107,7 +115,17 @@ class FreeRunInstability(Detector):
             else f"the free run stays within {max(worst, 0.0):.2g} range widths of the measured output range"
         )
         return self.finding(
-            ctx, score if significant else 0.0, significant, summary, evidence, stabilizers(ctx) if significant else []
+            ctx,
+            score if significant else 0.0,
+            Judgement.fixed(
+                significant,
+                f"grows {worst:.2g} > {GROWTH:g} range widths beyond the measured range"
+                if significant
+                else f"no divergence, growth {max(worst, 0.0):.2g} <= {GROWTH:g} ranges, tracks",
+            ),
+            summary,
+            evidence,
+            stabilizers(ctx, evidence) if significant else [],
         )
 
     def _lost_track(self, ctx: Context) -> Finding | None:
@@ -132,4 +150,5 @@ class FreeRunInstability(Detector):
             f"the free run loses track: {split} NMSE {free:.4g} % in free run against {one:.4g} % one step "
             f"ahead ({free / max(one, 1e-300):.3g} x): the feedback accumulates errors"
         )
-        return self.finding(ctx, score, True, summary, evidence, stabilizers(ctx))
+        why = f"lost track: NMSE {free:.3g} % >= {LOST:g} %, {free / max(one, 1e-300):.3g} x one-step"
+        return self.finding(ctx, score, Judgement.fixed(True, why), summary, evidence, stabilizers(ctx, evidence))

@@ -20,7 +20,7 @@ from dynmodel.diagnose.context import Context
 from dynmodel.diagnose.dependence import holdout_share, lagged, partial_share
 from dynmodel.diagnose.detector import Detector, Finding
 
-from ._extend import more_memory
+from ._extend import delay_lines
 
 MAX_AVERAGES = 8
 
@@ -44,6 +44,7 @@ class InsufficientMemory(Detector):
     cause = "insufficient-memory"
     description = "residual depends on input history older than the model's memory"
     priority = 8
+    applies = "records longer than 40 x the model's memory"
 
     def detect(self, ctx: Context) -> Finding | None:
         memory = ctx.memory
@@ -89,4 +90,13 @@ class InsufficientMemory(Detector):
             f"({tau * st:.4g} s), beyond the model's memory of {memory} samples: {100 * dep.share:.1f} % of "
             f"its mean square (p = {dep.p_value:.2g})"
         )
-        return self.finding(ctx, dep.share, significant, summary, evidence, more_memory(ctx, int(round(tau))))
+        t = int(round(tau))
+        delays = sorted({max(1, t), max(2, 2 * t)})
+        generic = delay_lines(
+            ctx,
+            delays,
+            f"delay lines at {delays} samples ({', '.join(f'{d * st:.4g}' for d in delays)} s): external memory of "
+            "the input (thesis 6.3.2)",
+        )
+        extensions = ctx.extensions(self.cause, evidence)
+        return self.finding(ctx, dep.share, significant, summary, evidence, extensions[:1] + generic + extensions[1:])

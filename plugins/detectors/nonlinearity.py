@@ -17,8 +17,6 @@ from dynmodel.diagnose.context import Context
 from dynmodel.diagnose.dependence import holdout_share, lagged
 from dynmodel.diagnose.detector import Detector, Finding
 
-from ._extend import more_nonlinearity
-
 DEGREES = (2, 3, 4, 5)
 
 
@@ -32,6 +30,7 @@ class StaticNonlinearity(Detector):
     cause = "static-nonlinearity"
     description = "residual depends nonlinearly on the current input level"
     priority = 7
+    applies = "a varying input"
 
     def detect(self, ctx: Context) -> Finding | None:
         best = None
@@ -73,4 +72,4 @@ class StaticNonlinearity(Detector):
             f"{100 * dep.share:.1f} % of its mean square (p = {dep.p_value:.2g}); the curve spans "
             f"{np.ptp(curve):.4g} over [{lo:.4g}, {hi:.4g}]"
         )
-        return self.finding(ctx, dep.share, significant, summary, evidence, more_nonlinearity(ctx))
+        return self.finding(ctx, dep.share, significant, summary, evidence, ctx.extensions(self.cause, evidence))

@@ -7,7 +7,10 @@ frequency (one-sided background) are not tested, nor bins within two bins of the
 lines of each input (periodogram peaks above 20 times its median) or of their harmonics up to the
 10th: a residual at a driving frequency or its harmonics (hysteresis, clipping) is a misfit of the
 response to that drive, not an oscillation of its own. The frequency is refined on a four times
-finer spectrum (:func:`dynmodel.diagnose.spectrum.refine_peak`). Score: the power above the
+finer spectrum (:func:`dynmodel.diagnose.spectrum.refine_peak`). Not named when the model's own free-run
+output peaks at the same frequency (its spectrum at least ``OWN_PEAK`` times its background within two
+bins): the model produces that oscillation, mistuned (a wrong stiffness, as in a Duffing oscillator fitted
+by a polynomial without the cubic term), which is not a missing mode. Score: the power above the
 background within +-4 bins of the peak (integrated over frequency), as a share of the residual's
 mean square.
 """
@@ -20,12 +23,13 @@ from dynmodel.diagnose.context import Context
 from dynmodel.diagnose.detector import Detector, Finding
 from dynmodel.diagnose.spectrum import Spectrum, refine_peak, welch
 
-from ._extend import faster_dynamics
+from ._extend import delay_lines
 
 BAND = 4
 HARMONICS = 10
 LINES = 3
 LINE_RATIO = 20.0
+OWN_PEAK = 4.0  # the model's own output this many times above its background at the peak: its own mode
 
 
 def input_lines(ctx: Context) -> list[float]:
@@ -51,10 +55,22 @@ def _excluded(spec: Spectrum, lines: list[float]) -> np.ndarray:
     return mask
 
 
+def _own_peak(ctx: Context, k: int, spec: Spectrum, i: int) -> float:
+    """The largest ratio of the model's free-run output spectrum to its background within 2 bins of bin i
+    (same Welch segments as the residual's)."""
+    nperseg = int(round(1.0 / (spec.freq[1] - spec.freq[0])))
+    own = welch([s.yhat[:, k] for s in ctx.segments], nperseg)
+    if own is None or not np.isfinite(np.concatenate([s.yhat[:, k] for s in ctx.segments])).all():
+        return 0.0
+    lo, hi = max(i - 2, 0), min(i + 3, len(own.freq))
+    return float(np.max(own.ratio()[lo:hi]))
+
+
 class UnmodeledOscillation(Detector):
     cause = "unmodeled-oscillation"
     description = "a spectral peak in the residual (an oscillation the model does not produce)"
     priority = 5
+    applies = "records of at least 64 samples"
 
     def detect(self, ctx: Context) -> Finding | None:
         lines = input_lines(ctx)
@@ -84,7 +100,18 @@ class UnmodeledOscillation(Detector):
         f = refine_peak(spec, i, e_segs)
         st = ctx.sampling_time
         period = 1.0 / f if f > 0 else float("inf")
-        significant = ctx.judge(p, share, k)
+        own = _own_peak(ctx, k, spec, i)
+        significant = ctx.judge(
+            p,
+            share,
+            k,
+            {
+                "not_the_models_own_mode": (
+                    own < OWN_PEAK,
+                    f"the model's output peaks there too ({own:.3g} x its background): a mistuned mode",
+                )
+            },
+        )
         evidence = {
             "statistic": "Welch spectrum of the residual over its running-median background, chi-square test "
             f"(Bonferroni over {m} bins)",
@@ -94,6 +121,7 @@ class UnmodeledOscillation(Detector):
             "period_samples": period,
             "period_seconds": period * st,
             "peak_to_background": float(spec.ratio()[i]),
+            "model_output_peak_to_background": own,
             "p_value": p,
             "alpha": ctx.settings.alpha,
             "dof": spec.dof,
@@ -105,4 +133,11 @@ class UnmodeledOscillation(Detector):
             f"{ctx.output_names[k]} residual has a spectral peak at {f / st:.4g} Hz (period {period:.3g} "
             f"samples), {spec.ratio()[i]:.3g} x its background (p = {p:.2g}), {100 * share:.1f} % of its power"
         )
-        return self.finding(ctx, share, significant, summary, evidence, faster_dynamics(ctx, period))
+        short = sorted({max(1, round(period / 4)), max(1, round(period / 2))}) if np.isfinite(period) else []
+        generic = delay_lines(
+            ctx,
+            short,
+            f"short-delay inputs: delay lines at {short} samples (a quarter and half of the {period:.3g}-sample period)",
+        )
+        extensions = ctx.extensions(self.cause, evidence)
+        return self.finding(ctx, share, significant, summary, evidence, extensions[:1] + generic + extensions[1:])

@@ -8,16 +8,15 @@ evidence. Families without a driven-system view (e.g. narx) are not checked.
 from __future__ import annotations
 
 from dynmodel.diagnose.context import Context
-from dynmodel.diagnose.detector import Detector, Finding
+from dynmodel.diagnose.detector import Detector, Finding, Judgement
 from dynmodel.reliability import Settings, check_model
-
-from ._extend import rescale
 
 
 class UnreliableModel(Detector):
     cause = "unreliable-model"
     description = "the reliability check finds that the model does not forget its initial state (thesis 5.3.1)"
     priority = 1
+    applies = "families with a driven-system view (networks)"
 
     def detect(self, ctx: Context) -> Finding | None:
         if not ctx.settings.reliability or ctx.model.family.driven_system() is None:
@@ -38,6 +37,6 @@ class UnreliableModel(Detector):
         summary = f"the reliability check finds the model {v.verdict}" + (
             f": {v.counterexamples[0]}" if significant and v.counterexamples else ""
         )
-        return self.finding(
-            ctx, 1.0 if significant else 0.0, significant, summary, evidence, rescale(ctx) if significant else []
-        )
+        verdict = Judgement.fixed(significant, f"reliability check: {v.verdict}")
+        extensions = ctx.extensions(self.cause, evidence) if significant else []
+        return self.finding(ctx, 1.0 if significant else 0.0, verdict, summary, evidence, extensions)

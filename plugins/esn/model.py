@@ -10,17 +10,25 @@ on free-running error by the predictor-corrector algorithm of section 5.3.2.
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
 
-from dynmodel import kernels, regression
+from dynmodel import kernels, readout, regression
 from dynmodel.data.training import TrainingData
-from dynmodel.family import Family, Progress, Simulation, no_progress
+from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
+from dynmodel.moments import Moments
 
 from .network import Network, build_network, largest_singular_value, spectral_radius
-from .params import EsnParams
+from .params import EsnParams, Readout, Refinement, Scale, Weights
+from .streaming import RunBuffers, free_run_moments, free_runs, output_of, teacher_forced_moments
+
+#: raised when the teacher-forced drive meets a missing (test) output
+_NEEDS_OUTPUTS = (
+    "the external mode needs measured outputs before every training and validation sample; "
+    "put the test split after the training and validation splits"
+)
 
 
 def _teacher_feedback(y: np.ndarray) -> np.ndarray:
@@ -35,9 +43,42 @@ class EchoStateNetwork(Family):
     name = "esn"
     description = "echo state network, internal or external approach (thesis 5.2.3, 5.3.2)"
     Params = EsnParams
-    stability_hint = "use cost: mse_inf, the internal mode or a smaller spectral scale"
+
+    @property  # type: ignore[override]
+    def stability_hint(self) -> str:
+        if self.external:
+            return "use cost: mse_inf, the internal mode or a smaller spectral scale"
+        return (
+            "the readout extrapolates (an internal network has no feedback to blow up): use a ridge readout, "
+            "fewer elements, or inputs within the training range"
+        )
+
+    warmup_hint = "set tune_in to at most {window}, or use mode: internal (no measured output is fed back)"
 
     params: EsnParams
+
+    def __init__(
+        self,
+        *,
+        size: int = 200,
+        mode: Literal["internal", "external"] = "internal",
+        connectivity: float | None = None,
+        input_connectivity: float = 0.5,
+        bias_connectivity: float = 0.8,
+        input_scale: float = 1.0,
+        bias_scale: float = 1.0,
+        feedback_scale: float = 1.0,
+        scale: Scale | dict[str, Any] | None = None,
+        relaxation: float | tuple[float, float] = (0.0, 0.99),
+        relaxation_gain: bool = True,
+        tune_in: int = 20,
+        bounds: float | None = 0.5,
+        readout: Readout | dict[str, Any] | None = None,
+        refinement: Refinement | dict[str, Any] | None = None,
+        weights: Weights | dict[str, Any] | None = None,
+    ) -> None:
+        """Parameters as in ``EsnParams`` (the spec's ``model.params``); see the class help."""
+        super().__init__(**constructor_arguments(locals()))
 
     # ------------------------------------------------------------------ structure
     @property
@@ -50,12 +91,6 @@ class EchoStateNetwork(Family):
 
     def _drive(self, u: np.ndarray, f: np.ndarray | None) -> np.ndarray:
         return u if f is None else np.hstack([u, f])
-
-    def _states(self, v: np.ndarray) -> np.ndarray:
-        return kernels.drive(*self.network_.kernel_args(), np.ascontiguousarray(v), np.zeros(self.network_.size))
-
-    def _features(self, X: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return np.hstack([X, v]) if self.params.readout.direct else X
 
     def _set_readout(self, fit: regression.LinearFit) -> None:
         m = self.network_.size
@@ -82,15 +117,24 @@ class EchoStateNetwork(Family):
         self.D_ = vec[nw : nw + nd].reshape(self.D_.shape).copy()
         self.w0_ = vec[nw + nd :].copy()
 
-    def _solve_readout(self, F: np.ndarray, Y: np.ndarray, Fv: np.ndarray | None, Yv: np.ndarray | None):
+    def _uses_validation(self) -> bool:
+        """Does the readout solver look at the validation rows (FOS stopping, ridge factor search)?"""
+        r = self.params.readout
+        return r.solver == "fos" or (r.solver == "ridge" and r.ridge == "auto")
+
+    def _solve_readout(self, train: Moments, validation: Moments | None) -> regression.LinearFit:
+        """The readout from the accumulated moments of the training (and validation) rows."""
+        for m in (train, validation):
+            if m is not None and not m.finite:
+                raise ValueError(_NEEDS_OUTPUTS)
         r = self.params.readout
         if r.solver == "lstsq":
-            return regression.lstsq(F, Y, rcond=r.rcond)
+            return readout.lstsq(train, rcond=r.rcond)
         if r.solver == "ridge":
-            if r.ridge == "auto" and Fv is None:
+            if r.ridge == "auto" and validation is None:
                 raise ValueError("readout.ridge: auto needs a validation split; give a number or a validation split")
-            return regression.ridge(F, Y, r.ridge, Fv, Yv)
-        return regression.fos(F, Y, Fv=Fv, Yv=Yv, max_terms=r.max_terms, threshold=r.threshold, patience=r.patience)
+            return readout.ridge(train, r.ridge, validation)
+        return readout.fos(train, validation, max_terms=r.max_terms, threshold=r.threshold, patience=r.patience)
 
     # ------------------------------------------------------------------ fitting
     def fit(
@@ -108,8 +152,23 @@ class EchoStateNetwork(Family):
     def _prepare(self, data: TrainingData) -> None:
         self.n_inputs_ = data.n_inputs
         self.n_outputs_ = data.n_outputs
-        self.y_rest_ = np.nanmean(data.targets("train"), axis=0)
+        y = data.targets("train")
+        self.y_rest_ = np.nanmean(y, axis=0)
         self._bounds = data.output_bounds()
+        self.clip_lo_ = np.full(self.n_outputs_, -np.inf)
+        self.clip_hi_ = np.full(self.n_outputs_, np.inf)
+        m = getattr(self.params, "bounds", None)  # families built on this one may not clip
+        if m is not None:
+            lo, hi = np.nanmin(y, axis=0), np.nanmax(y, axis=0)
+            self.clip_lo_, self.clip_hi_ = lo - m * (hi - lo), hi + m * (hi - lo)
+
+    @property
+    def _clip(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = getattr(self, "clip_lo_", None)
+        if lo is None:  # a model saved before clipping existed
+            inf = np.full(self.n_outputs_, np.inf)
+            return -inf, inf
+        return self.clip_lo_, self.clip_hi_
 
     def training_drives(self, data: TrainingData) -> list[np.ndarray]:
         """Per series: the drive in training (input, plus the measured past output in external mode)."""
@@ -118,22 +177,22 @@ class EchoStateNetwork(Family):
             for s in data.series
         ]
 
+    def _splits(self, data: TrainingData) -> tuple[str, ...]:
+        """The splits whose moments the readout needs."""
+        return ("train", "validation") if self._uses_validation() and data.has("validation") else ("train",)
+
     def _fit_readout(self, data: TrainingData, cost: str, progress: Progress) -> EchoStateNetwork:
-        """Readout of ``network_`` on the training split; refinement for cost mse_inf (external mode)."""
-        progress("states", None, f"driving {self.network_.size} elements")
-        drives = self.training_drives(data)
-        states = [self._states(v) for v in drives]
-        feats = [self._features(X, v) for X, v in zip(states, drives)]
-        F, Y = data.stack("train", feats), data.targets("train")
-        if not np.isfinite(F).all():
-            raise ValueError(
-                "the external mode needs measured outputs before every training sample; "
-                "put the test split after the training and validation splits"
-            )
-        Fv = data.stack("validation", feats) if data.has("validation") else None
-        Yv = data.targets("validation") if data.has("validation") else None
-        progress("readout", None, f"{self.params.readout.solver} readout on {F.shape[0]} samples")
-        self._set_readout(self._solve_readout(F, Y, Fv, Yv))
+        """Readout of ``network_`` on the training split; refinement for cost mse_inf (external mode).
+
+        The network is driven chunk by chunk and only the moments of the readout features are
+        kept (memory (M + n_drive)^2, whatever the number of samples)."""
+        progress("states", None, f"driving {self.network_.size} elements, accumulating the readout moments")
+        moments = teacher_forced_moments(
+            self.network_, data, self.training_drives(data), self.params.readout.direct, self._splits(data)
+        )
+        train = moments["train"]
+        progress("readout", None, f"{self.params.readout.solver} readout on {train.n} samples")
+        self._set_readout(self._solve_readout(train, moments.get("validation")))
         self.refinement_: list[dict[str, float]] = []
         if cost == "mse_inf" and self.external:
             self._refine(data, progress)
@@ -145,37 +204,28 @@ class EchoStateNetwork(Family):
             )
         return self
 
-    def _free_runs(self, data: TrainingData, mix: float, store: bool):
-        out = []
-        args = self.network_.kernel_args()
+    def _run_args(self) -> dict[str, Any]:
+        """Readout, divergence band and output clip of the external-mode runs in training."""
         lo, hi = self._bounds
-        for s in data.series:
-            out.append(
-                kernels.free_run(
-                    *args,
-                    np.ascontiguousarray(s.u),
-                    np.ascontiguousarray(s.y),
-                    min(self.params.tune_in, s.n),
-                    mix,
-                    self.W_,
-                    self.D_,
-                    self.w0_,
-                    self.y_rest_,
-                    lo,
-                    hi,
-                    np.zeros(self.network_.size),
-                    store,
-                )
-            )
-        return out
+        clip_lo, clip_hi = self._clip
+        return dict(
+            tune_in=self.params.tune_in,
+            W=self.W_,
+            D=self.D_,
+            w0=self.w0_,
+            y_rest=self.y_rest_,
+            lo=lo,
+            hi=hi,
+            clip_lo=clip_lo,
+            clip_hi=clip_hi,
+        )
 
-    def _free_run_error(self, data: TrainingData) -> float:
+    def _free_run_error(self, data: TrainingData, buffers: RunBuffers) -> float:
         """Mean NMSE (fraction) over outputs of the pure free run on validation (else training) rows."""
         split = "validation" if data.has("validation") else "train"
-        runs = self._free_runs(data, 0.0, False)
-        if any(r[3] >= 0 for r in runs):
+        if not free_runs(self.network_, data, 0.0, buffers, **self._run_args()):
             return np.inf
-        pred = data.stack(split, [r[1] for r in runs])
+        pred = data.stack(split, buffers.yhat)
         target = data.targets(split)
         return float(np.mean(np.mean((target - pred) ** 2, axis=0) / np.maximum(np.var(target, axis=0), 1e-300)))
 
@@ -186,8 +236,10 @@ class EchoStateNetwork(Family):
         signal starts as a mixture of measured and predicted output and moves to pure prediction
         over ``ramp`` iterations (error propagation, thesis 6.3.2)."""
         r = self.params.refinement
+        buffers = RunBuffers(data)  # outputs of every run, reused
+        reused: dict[str, Moments] = {}
         best_vec = self._readout_vector()
-        best_err = self._free_run_error(data)
+        best_err = self._free_run_error(data, buffers)
         unstable = not np.isfinite(best_err)
         self.refinement_ = [{"iteration": 0, "mix": 1.0 if unstable else 0.0, "validation_nmse": 100 * best_err}]
         mix = 1.0 if unstable else 0.0
@@ -195,19 +247,25 @@ class EchoStateNetwork(Family):
         for it in range(1, r.max_iter + 1):
             if unstable:
                 mix = max(0.0, 1.0 - it / r.ramp)
-            runs = self._free_runs(data, mix, True)
-            if any(run[3] >= 0 for run in runs):
+            moments = free_run_moments(
+                self.network_,
+                data,
+                mix,
+                self.params.readout.direct,
+                self._splits(data),
+                buffers,
+                **self._run_args(),
+                into=reused or None,
+            )
+            if moments is None:  # the run diverged
                 if mix == 0.0 and not unstable:
                     break
                 continue
-            feats = [self._features(run[0], self._drive(s.u, run[2])) for run, s in zip(runs, data.series)]
-            F, Y = data.stack("train", feats), data.targets("train")
-            Fv = data.stack("validation", feats) if data.has("validation") else None
-            Yv = data.targets("validation") if data.has("validation") else None
+            reused = moments
             current = self._readout_vector()
-            self._set_readout(self._solve_readout(F, Y, Fv, Yv))
+            self._set_readout(self._solve_readout(moments["train"], moments.get("validation")))
             self._set_readout_vector((1.0 - r.alpha) * current + r.alpha * self._readout_vector())
-            err = self._free_run_error(data)
+            err = self._free_run_error(data, buffers)
             self.refinement_.append({"iteration": it, "mix": mix, "validation_nmse": 100 * err})
             progress("refine", it / r.max_iter, f"iteration {it}: free-run validation NMSE {100 * err:.4g} %")
             if err < best_err:
@@ -226,9 +284,9 @@ class EchoStateNetwork(Family):
         self.check_fitted()
         u = np.ascontiguousarray(u, dtype=np.float64)
         if not self.external:
-            # no feedback: the output is a static map of bounded states and cannot diverge
-            X = self._states(u)
-            return Simulation(X @ self.W_.T + self._drive_direct(u) + self.w0_, None)
+            # no feedback: the output is a static map of bounded states; clipped (eq. 6.25) because
+            # the readout extrapolates linearly in the direct inputs and in states never seen
+            return Simulation(np.clip(output_of(self.network_, u, self.W_, self.D_, self.w0_), *self._clip), None)
         tune = min(self.params.tune_in, u.shape[0])
         if tune > 0 and (y_measured is None or len(y_measured) < tune):
             have = 0 if y_measured is None else len(y_measured)
@@ -237,7 +295,7 @@ class EchoStateNetwork(Family):
             )
         Y = np.zeros((0, self.n_outputs_)) if tune == 0 else np.ascontiguousarray(y_measured[:tune], dtype=np.float64)
         lo, hi = bounds if bounds is not None else (np.full(self.n_outputs_, -np.inf), np.full(self.n_outputs_, np.inf))
-        _, y, _, div = kernels.free_run(
+        _, y, _, div = kernels.free_run_clipped(
             *self.network_.kernel_args(),
             u,
             Y.reshape(-1, self.n_outputs_),
@@ -251,26 +309,17 @@ class EchoStateNetwork(Family):
             hi,
             np.zeros(self.network_.size),
             False,
+            *self._clip,
         )
         return Simulation(y, None if div < 0 else int(div))
-
-    def _drive_direct(self, u: np.ndarray) -> np.ndarray:
-        return u @ self.D_[:, : u.shape[1]].T
 
     def predict_one_step(self, u: np.ndarray, y_measured: np.ndarray) -> np.ndarray | None:
         if not self.external:
             return None
         v = self._drive(np.asarray(u, dtype=np.float64), _teacher_feedback(np.asarray(y_measured, dtype=np.float64)))
-        X = self._states(v)
-        return X @ self.W_.T + v @ self.D_.T + self.w0_
+        return output_of(self.network_, v, self.W_, self.D_, self.w0_)
 
     # ------------------------------------------------------------------ reliability hooks
-    def state_update(self, X: np.ndarray, V: np.ndarray) -> np.ndarray:
-        """One step of the state equation for many replicas: X (R, M), V (R, n_drive)."""
-        out = np.empty_like(X)
-        kernels.step_batch(*self.network_.kernel_args(), np.ascontiguousarray(X), np.ascontiguousarray(V), out)
-        return out
-
     def driven_system(self):
         """The network as a driven system (model space). External mode: the open loop, driven by
         the input and the fed-back output, with the readout as its closed loop (thesis 5.3.2)."""
@@ -314,6 +363,8 @@ class EchoStateNetwork(Family):
             "D": self.D_,
             "w0": self.w0_,
             "y_rest": self.y_rest_,
+            "clip_low": self._clip[0],
+            "clip_high": self._clip[1],
         }
         attrs = {
             "size": net.size,
@@ -335,6 +386,9 @@ class EchoStateNetwork(Family):
         self.W_, self.D_, self.w0_ = arrays["W"], arrays["D"], arrays["w0"]
         self.y_rest_ = arrays["y_rest"]
         self.n_inputs_, self.n_outputs_ = int(attrs["n_inputs"]), int(attrs["n_outputs"])
+        if "clip_low" in arrays:
+            self.clip_lo_ = np.asarray(arrays["clip_low"], dtype=np.float64)
+            self.clip_hi_ = np.asarray(arrays["clip_high"], dtype=np.float64)
         self.refinement_ = list(attrs.get("refinement") or [])
         return self
 
@@ -349,8 +403,17 @@ class EchoStateNetwork(Family):
             "readout": self.params.readout.solver,
         }
         info["readout terms"] = [int(len(s)) for s in self.selected_]
+        if np.isfinite(self._clip[0]).any():
+            info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(*self._clip)]
         if self.external:
             info["tune_in"] = self.params.tune_in
             if len(self.refinement_) > 1:
                 info["refinement iterations"] = len(self.refinement_) - 1
         return info
+
+    # ------------------------------------------------------------------ extensions (docs/plugins-extensions.md)
+    @classmethod
+    def extensions(cls, cause, ctx):
+        from .extensions import extensions
+
+        return extensions(cause, ctx)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -12,16 +12,26 @@ from dynmodel.reliability.evidence import largest_singular_value, spectral_radiu
 
 from .params import EsnParams
 
-__all__ = ["Network", "build_network", "largest_singular_value", "spectral_radius"]
+__all__ = ["Network", "build_network", "element_gain", "largest_singular_value", "spectral_radius"]
 
 
-@dataclass
+def element_gain(a: np.ndarray, relaxation_gain: bool) -> np.ndarray:
+    """g of the elements: 1 - |a| (eq. 6.21) when ``relaxation_gain``, else 1 (eq. 6.27)."""
+    return 1.0 - np.abs(a) if relaxation_gain else np.ones_like(a)
+
+
+@dataclass(frozen=True)
 class Network:
-    """x_t = a x_{t-1} + g tanh(C x_{t-1} + c0 + B_in u_t + B_back f_t)."""
+    """x_t = a x_{t-1} + g tanh(C x_{t-1} + c0 + B_in u_t + B_back f_t).
 
-    C: sp.csr_matrix
+    The one description of a tanh network in the plugins: the `esn` family builds it at random,
+    `annealed-rnn` edits it (with C dense while the moves act on it, :meth:`dense`) and both run
+    it through the compiled kernels (:meth:`kernel_args`, C in CSR form). Immutable: a change
+    makes a new network (``dataclasses.replace``)."""
+
+    C: sp.csr_matrix | np.ndarray  # (M, M): CSR, or dense while an annealing search edits it
     B_in: np.ndarray  # (M, n_inputs)
-    B_back: np.ndarray  # (M, n_outputs); empty columns in internal mode
+    B_back: np.ndarray  # (M, n_outputs); no columns in internal mode
     c0: np.ndarray
     a: np.ndarray
     g: np.ndarray
@@ -34,16 +44,30 @@ class Network:
     def B(self) -> np.ndarray:
         return np.hstack([self.B_in, self.B_back])
 
+    def sparse(self) -> Network:
+        """The same network with C in CSR form (sorted indices), as the fitted models keep it."""
+        if sp.issparse(self.C):
+            return self
+        C = sp.csr_matrix(self.C)
+        C.sort_indices()
+        return replace(self, C=C)
+
+    def dense(self) -> Network:
+        """The same network with C as a dense array (the form the annealing moves edit)."""
+        return replace(self, C=self.C.toarray()) if sp.issparse(self.C) else self
+
     def kernel_args(self) -> tuple:
-        C = self.C
+        """(indptr, indices, data, B, c0, a, g) for :mod:`dynmodel.kernels`. Unsigned indices:
+        they spare the compiled gather numba's check for negative indices (20 - 30 % of a step)."""
+        C = self.sparse().C
         return (
-            C.indptr.astype(np.int64),
-            C.indices.astype(np.int64),
+            C.indptr.astype(np.uint64),
+            C.indices.astype(np.uint64),
             C.data.astype(np.float64),
-            np.ascontiguousarray(self.B),
-            self.c0,
-            self.a,
-            self.g,
+            np.ascontiguousarray(self.B, dtype=np.float64),
+            np.ascontiguousarray(self.c0, dtype=np.float64),
+            np.ascontiguousarray(self.a, dtype=np.float64),
+            np.ascontiguousarray(self.g, dtype=np.float64),
         )
 
 
@@ -98,7 +122,7 @@ def build_network(p: EsnParams, n_inputs: int, n_outputs: int, rng: np.random.Ge
             a = rng.uniform(p.relaxation[0], p.relaxation[1], m)
         else:
             a = np.full(m, float(p.relaxation))
-    g = 1.0 - np.abs(a) if p.relaxation_gain else np.ones(m)
+    g = element_gain(a, p.relaxation_gain)
     Cs = sp.csr_matrix(C)
     assert p.scale is not None
     if p.scale.by == "singular":

@@ -102,17 +102,42 @@ class EsnParams(FamilyParams):
         description="probability of a nonzero entry in C "
         "(default 2 / size: two connections per element, 0.01 for 200 elements)",
     )
-    input_connectivity: float = Field(0.1, gt=0, le=1, description="probability of a nonzero input weight")
+    input_connectivity: float = Field(
+        0.5,
+        gt=0,
+        le=1,
+        description="probability of a nonzero input weight (default 0.5: with two connections per element a "
+        "sparse network passes little on, so the input should reach many elements directly)",
+    )
     bias_connectivity: float = Field(0.8, ge=0, le=1, description="probability of a nonzero bias")
     input_scale: float = Field(1.0, gt=0, description="std of the nonzero input weights")
     bias_scale: float = Field(1.0, ge=0, description="std of the nonzero biases")
     feedback_scale: float = Field(1.0, gt=0, description="external mode: std of the nonzero fed-back-output weights")
     scale: Optional[Scale] = Field(None, description="default: largest singular value 0.95; none for explicit weights")
     relaxation: Union[float, tuple[float, float]] = Field(
-        0.0, description="relaxation a of x_t = a x_{t-1} + g tanh(...): a number, or [low, high] drawn per element"
+        (0.0, 0.99),
+        description="relaxation a of x_t = a x_{t-1} + g tanh(...): a number, or [low, high] drawn per element "
+        "(default [0, 0.99]: leaky elements with time constants from 1 to 100 samples, thesis 6.2 / 6.3: a "
+        "randomly connected network scaled to sigma(C) = 0.95 has a spectral radius near 0.3 and forgets its "
+        "input within a few samples, too fast for most measured systems)",
     )
-    relaxation_gain: bool = Field(False, description="g = 1 - |a| (eq. 6.21) instead of g = 1 (eq. 6.27)")
-    tune_in: int = Field(100, ge=0, description="external mode: measured output samples fed back before running free")
+    relaxation_gain: bool = Field(
+        True,
+        description="g = 1 - |a| (eq. 6.21, the default: every element's gain stays below 1) instead of g = 1 (eq. 6.27)",
+    )
+    tune_in: int = Field(
+        20,
+        ge=0,
+        description="external mode: measured output samples fed back before running free (default 20: inside the "
+        "state-initialisation windows of the standard benchmarks, 20 - 50 samples)",
+    )
+    bounds: Optional[float] = Field(
+        0.5,
+        ge=0,
+        description="clip the output to its training range widened by this many range widths on both sides "
+        "(eq. 6.25 applied to networks: outside the training inputs a readout extrapolates without limit; in the "
+        "external mode the clipped value is fed back); null: no clipping",
+    )
     readout: Readout = Field(default_factory=Readout)
     refinement: Refinement = Field(default_factory=Refinement)
     weights: Optional[Weights] = Field(None, description="explicit matrices instead of a random network")
@@ -124,6 +149,11 @@ class EsnParams(FamilyParams):
             if "size" in self.model_fields_set and self.size != m:
                 raise ValueError(f"size {self.size} disagrees with the {m} x {m} matrix in weights.C")
             self.size = m
+            # explicit matrices (e.g. eq. 5.28) are plain elements unless leaky ones are asked for
+            if "relaxation" not in self.model_fields_set:
+                self.relaxation = 0.0
+            if "relaxation_gain" not in self.model_fields_set:
+                self.relaxation_gain = False
         if isinstance(self.relaxation, tuple):
             lo, hi = self.relaxation
             if not -1 < lo <= hi < 1:

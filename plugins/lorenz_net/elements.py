@@ -93,8 +93,11 @@ def simulate_network(
     substeps: int,
     out: np.ndarray | None = None,
     only: list[int] | None = None,
+    x0: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int]:
-    """States (n, M, 3) of the network driven by U (n, n_inputs) from rest.
+    """States (n, M, 3) of the network driven by U (n, n_inputs) from rest (or from the states
+    ``x0`` (M, 3): chunk after chunk, each from the last states of the previous one, this equals
+    one long run).
 
     ``only``: recompute just these elements (in increasing order) in a given ``out``; the others
     must already hold their trajectories (the caching of the structure search). Returns the
@@ -106,6 +109,7 @@ def simulate_network(
         only = None
     first_bad = -1
     buf = np.empty((n, 3))
+    start = np.zeros((M, 3)) if x0 is None else np.asarray(x0, dtype=np.float64)
     for i in range(M) if only is None else only:
         v = U @ B[i]
         for j in np.flatnonzero(C[i, :i]):
@@ -118,7 +122,7 @@ def simulate_network(
             np.ascontiguousarray(v),
             dt,
             substeps,
-            np.zeros(3),
+            start[i],
             buf,
         )
         out[:, i, :] = buf

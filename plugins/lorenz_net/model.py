@@ -10,18 +10,19 @@ the couplings) are adapted by simulated annealing on the validation NMSE.
 from __future__ import annotations
 
 import threading
-from typing import Any
+import warnings
+from typing import Any, Literal
 
 import numpy as np
 
-from dynmodel import regression
+from dynmodel import readout
 from dynmodel.anneal import Schedule, anneal, run_restarts
 from dynmodel.data.training import TrainingData
-from dynmodel.family import Family, Progress, Simulation, no_progress
+from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
 
-from .elements import simulate_network
 from .params import LorenzNetParams
 from .search import Evaluator, initial_state, make_moves
+from .streaming import outputs, readout_moments
 
 
 class LorenzNet(Family):
@@ -30,6 +31,30 @@ class LorenzNet(Family):
     Params = LorenzNetParams
 
     params: LorenzNetParams
+
+    def __init__(
+        self,
+        *,
+        size: int = 32,
+        strategy: Literal["parallel", "feed-forward"] = "feed-forward",
+        layers: int = 4,
+        extra_links: int = 30,
+        steps: int = 400,
+        coupling_share: float = 0.5,
+        t0: float = 0.1,
+        t_end: float = 1e-4,
+        step: float = 0.5,
+        sigma_range: tuple[float, float] = (0.0, 20.0),
+        r_range: tuple[float, float] = (0.0, 40.0),
+        b_range: tuple[float, float] = (0.0, 10.0),
+        alpha_range: tuple[float, float] = (0.8, 1.2),
+        substeps: int = 4,
+        time_scale: float | None = None,
+        restarts: int = 1,
+        workers: int = 0,
+    ) -> None:
+        """Parameters as in ``LorenzNetParams`` (the spec's ``model.params``); see the class help."""
+        super().__init__(**constructor_arguments(locals()))
 
     def _dt(self, data_sampling_time: float) -> float:
         return float(self.params.time_scale or data_sampling_time)
@@ -90,34 +115,29 @@ class LorenzNet(Family):
         best = int(np.argmin([r[1] for r in runs]))
         state = runs[best][0]
         self.search_ = {"restarts": [r[2] for r in runs], "best_run": best}
+        if any(r[2].get("interrupted") for r in runs):
+            warnings.warn(
+                f"the annealing was interrupted (Ctrl-C): the model keeps the best network found so far "
+                f"(validation NMSE {100 * runs[best][1]:.4g} %), not the result of the full schedule",
+                stacklevel=2,
+            )
         if not np.isfinite(runs[best][1]):
             raise ValueError(
                 "every Lorenz network diverged in the RK4 integration; raise `substeps` or lower the parameter ranges"
             )
         self.element_params_, self.C_, self.B_, self.layer_ = state.params, state.C, state.B, state.layer
         progress("readout", None, "least squares on all 3M states")
-        F = [self._states(s.u).reshape(s.n, -1) for s in data.series]
-        fit = regression.lstsq(data.stack("train", F), data.targets("train"))
+        moments = readout_moments(self.element_params_, self.C_, self.B_, self.dt_, p.substeps, data)
+        fit = readout.lstsq(moments["train"])
         self.W_, self.w0_ = np.ascontiguousarray(fit.coef.T), fit.intercept
         return self
-
-    def _states(self, u: np.ndarray) -> np.ndarray:
-        X, _ = simulate_network(
-            self.element_params_,
-            self.C_,
-            self.B_,
-            np.ascontiguousarray(u, dtype=np.float64),
-            self.dt_,
-            self.params.substeps,
-        )
-        return X
 
     def simulate(
         self, u: np.ndarray, y_measured: np.ndarray | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None
     ) -> Simulation:
         self.check_fitted()
-        X = self._states(u).reshape(len(u), -1)
-        y = X @ self.W_.T + self.w0_
+        u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)
+        y = outputs(self.element_params_, self.C_, self.B_, self.dt_, self.params.substeps, u, self.W_, self.w0_)
         bad = np.flatnonzero(~np.isfinite(y).all(axis=1))
         return Simulation(y, int(bad[0]) if bad.size else None)
 

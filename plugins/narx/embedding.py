@@ -16,8 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 INPUT, OUTPUT = 0, 1
-DEFAULT_INPUT_LAGS = (0, 1, 2)
-DEFAULT_OUTPUT_LAGS = (1, 2)
+#: the default embedding: every input at lags 0 .. L, every output at 1 .. L, with L the largest of
+#: DEFAULT_MAX_LAG .. 1 whose pool holds at most DEFAULT_POOL monomials
+DEFAULT_MAX_LAG = 6
+DEFAULT_POOL = 600
 
 _FACTOR = re.compile(r"^(?P<name>.+?)\[\s*t\s*(?:-\s*(?P<lag>\d+)\s*)?\](?:\s*\^\s*(?P<pow>\d+))?$")
 
@@ -75,18 +77,38 @@ def _lag_error(name: str, what: str) -> ValueError:
     return ValueError(f"lags.{name}: {what}")
 
 
+def default_lag_table(
+    input_names: list[str], output_names: list[str], degree: int, constant: bool = True
+) -> dict[str, list[int]]:
+    """The default embedding: inputs at 0 .. L and outputs at 1 .. L (eq. 3.5 / 3.6), L the largest
+    of ``DEFAULT_MAX_LAG`` .. 1 whose pool of degree ``degree`` holds at most ``DEFAULT_POOL``
+    monomials (the Gram matrix costs N K^2; FOS then keeps the lags that matter). One input and
+    one output at degree 3: L = 6 (13 regressors, 560 monomials), the embedding that models
+    Silverbox and Bouc-Wen best; two inputs: L = 3; degree 5: L = 2 (the thesis's 3.2.4 pool)."""
+    n_in, n_out = len(input_names), len(output_names)
+    L = 1
+    for lag in range(DEFAULT_MAX_LAG, 0, -1):
+        if pool_size(n_in * (lag + 1) + n_out * lag, degree, constant) <= DEFAULT_POOL:
+            L = lag
+            break
+    table = {n: list(range(0, L + 1)) for n in input_names}
+    table.update({n: list(range(1, L + 1)) for n in output_names})
+    return table
+
+
 def build_embedding(
     lags: dict[str, list[int]] | None,
     input_names: list[str],
     output_names: list[str],
     extra: list[tuple[str, int]] = (),
+    degree: int = 3,
+    constant: bool = True,
 ) -> Embedding:
-    """Regressors from ``{column: [lags]}`` (None: every input [0, 1, 2], every output [1, 2])
+    """Regressors from ``{column: [lags]}`` (None: :func:`default_lag_table` for this ``degree``)
     plus the (column, lag) pairs in ``extra`` (from explicit terms)."""
     table: dict[str, set[int]]
     if lags is None:
-        table = {n: set(DEFAULT_INPUT_LAGS) for n in input_names}
-        table.update({n: set(DEFAULT_OUTPUT_LAGS) for n in output_names})
+        table = {n: set(v) for n, v in default_lag_table(input_names, output_names, degree, constant).items()}
     else:
         table = {n: set(v) for n, v in lags.items()}
     for name, lag in extra:

@@ -146,6 +146,30 @@ class Scored:
         return cls(rr, stop, var, int(len(Y)))
 
 
+def segment_view(data: TrainingData, split: str, lead: int) -> TrainingData:
+    """The segments of ``split`` cut out of their recordings, each with the ``lead`` samples before
+    it (measured outputs of the training split: the initial past of a free run started there, as a
+    test starts from a state-initialisation window). Scoring a free run on this view costs the
+    split's length instead of its recording's (Silverbox: a fifth)."""
+    from dynmodel.data.training import Series
+
+    series, segments = [], []
+    for s, a, b in data.segments.get(split, []):
+        a0 = max(0, a - lead)
+        ser = data.series[s]
+        series.append(Series(ser.u[a0:b], ser.y[a0:b]))
+        segments.append((len(series) - 1, a - a0, b - a0))
+    return TrainingData(
+        series,
+        {split: segments},
+        data.input_names,
+        data.output_names,
+        data.sampling_time,
+        data.output_offset,
+        data.output_scale,
+    )
+
+
 def split_error(
     st: Structure, data: TrainingData, scored: Scored, w: np.ndarray, band: tuple[np.ndarray, np.ndarray]
 ) -> float:
@@ -161,6 +185,34 @@ def split_error(
             return np.inf
         sq += np.sum((ser.y[rows] - yhat[rows]) ** 2, axis=0)
     return float(np.mean(sq / scored.n / scored.var)) if scored.n else np.nan
+
+
+def output_error(
+    st: Structure,
+    data: TrainingData,
+    scored: Scored,
+    w: np.ndarray,
+    band: tuple[np.ndarray, np.ndarray],
+    k: int,
+) -> float:
+    """Free-run NMSE (a fraction) of output ``k`` alone on the scored rows, the other outputs fed back
+    measured (mix 1; ``st`` holds only output k's terms); inf when output k leaves the band."""
+    mix = np.ones(st.n_out)
+    mix[k] = 0.0
+    lo = np.full(st.n_out, -np.inf)
+    hi = np.full(st.n_out, np.inf)
+    lo[k], hi[k] = band[0][k], band[1][k]
+    sq = 0.0
+    for s, rows in enumerate(scored.rows):
+        if not rows.size:
+            continue
+        ser = data.series[s]
+        stop = scored.stop[s]
+        yhat, div = st.run(ser.u[:stop], ser.y[:stop], w, mix, (lo, hi))
+        if div >= 0:
+            return np.inf
+        sq += float(np.sum((ser.y[rows, k] - yhat[rows, k]) ** 2))
+    return sq / scored.n / scored.var[k] if scored.n else np.nan
 
 
 def diverges(

@@ -24,16 +24,19 @@ from .params import NarxFamilyParams
 
 #: stability(k, exponents, weights) -> True when output k's polynomial diverges in free run
 StabilityCheck = Callable[[int, np.ndarray, np.ndarray], bool]
+#: free_run_error(k, exponents, weights) -> free-run NMSE of output k on the validation split (inf: diverged)
+FreeRunError = Callable[[int, np.ndarray, np.ndarray], float]
 
 
 def make_pool(n_regressors: int, p: NarxFamilyParams) -> np.ndarray:
-    K = pool_size(n_regressors, p.degree, p.constant)
+    degree = p.max_degree
+    K = pool_size(n_regressors, degree, p.constant)
     if K > p.max_pool:
         raise ValueError(
-            f"the pool would hold {K} monomials ({n_regressors} regressors up to degree {p.degree}), more "
+            f"the pool would hold {K} monomials ({n_regressors} regressors up to degree {degree}), more "
             f"than max_pool = {p.max_pool}; lower the degree, use fewer lags, or raise max_pool"
         )
-    return pool_exponents(n_regressors, p.degree, p.constant)
+    return pool_exponents(n_regressors, degree, p.constant)
 
 
 def fos_structure(
@@ -44,21 +47,42 @@ def fos_structure(
     output_names: list[str],
     stability: StabilityCheck | None,
     progress: Progress,
+    free_run_error: FreeRunError | None = None,
+    gram: tuple[np.ndarray, np.ndarray] | None = None,
 ):
-    """FOS per output on the shared Gram matrix; returns (exponents, term outputs, weights, info)."""
-    progress("pool", None, f"Gram matrix of {E.shape[0]} monomials on {train.n} patterns")
-    G, C = pool_mod.gram(train.X, train.Y, E)
+    """FOS per output on the shared Gram matrix (``gram``: G and C of the pool E when already
+    computed); returns (exponents, term outputs, weights, info).
+
+    The terms come in FOS order (the one-step error reduction, A.2.2). How many are kept is decided
+    on the validation split: by the error of the free run (``stop_on: free_run``, when
+    ``free_run_error`` is given: the model is used in free run, thesis 3.1.4) or of the one-step
+    predictions (A.3); in both cases after ``patience`` terms without a new lowest error the
+    search stops and the best size is kept."""
+    if gram is None:
+        progress("pool", None, f"Gram matrix of {E.shape[0]} monomials on {train.n} patterns")
+        G, C = pool_mod.gram(train.X, train.Y, E)
+    else:
+        G, C = gram
     use_val = val is not None and p.patience is not None
     if not use_val and p.max_terms is None and p.threshold is None:
         raise ValueError(
             "FOS needs a stopping rule: a validation split (data.split.validation, used with patience), "
             "max_terms or threshold"
         )
-    lazy = pool_mod.LazyColumns(val.X, E) if use_val else None
+    by_free_run = use_val and p.stop_on == "free_run" and free_run_error is not None
+    lazy = pool_mod.LazyColumns(val.X, E) if use_val and not by_free_run else None
     forced = (0,) if p.constant else ()
     rows, outs, weights, info = [], [], [], []
     for k, name in enumerate(output_names):
         y = train.Y[:, k]
+        score = None
+        if by_free_run:
+            assert free_run_error is not None
+
+            def score(order: list[int], coef: np.ndarray, k: int = k, name: str = name) -> float:
+                progress("fos", None, f"output {name}: {len(order)} terms, free run on the validation split")
+                return free_run_error(k, E[order], coef)
+
         path = regression.fos_select(
             G,
             C[:, k],
@@ -67,8 +91,9 @@ def fos_structure(
             max_terms=p.max_terms,
             threshold=p.threshold,
             Pv=lazy,
-            yv=val.Y[:, k] if use_val else None,
+            yv=val.Y[:, k] if lazy is not None else None,
             patience=p.patience or 1,
+            validation=score,
         )
         best = path.best
         if best == 0:
@@ -78,6 +103,10 @@ def fos_structure(
             while best > 1 and stability(k, E[path.order[:best]], path.coef_path[best - 1]):
                 best -= 1
                 dropped += 1
+        kept_error = None
+        if by_free_run and path.validation_error is not None:
+            e = float(path.validation_error[best - 1]) if best <= len(path.validation_error) else np.inf
+            kept_error = 100 * e if np.isfinite(e) else None
         kept = path.order[:best]
         if p.weights == "recursion":
             w = path.coef_path[best - 1]
@@ -90,8 +119,16 @@ def fos_structure(
             {
                 "order": kept.tolist(),
                 "error_reduction": (path.error_reduction[:best] / max(float(y @ y), 1e-300)).tolist(),
-                "validation_mse": None if path.validation_error is None else path.validation_error.tolist(),
+                "validation_mse": None
+                if path.validation_error is None or by_free_run
+                else path.validation_error.tolist(),
+                "validation_free_run_nmse": [
+                    None if not np.isfinite(e) else 100 * float(e) for e in path.validation_error
+                ]
+                if by_free_run and path.validation_error is not None
+                else None,
                 "dropped_for_stability": dropped,
+                "validation_free_run_nmse_kept": kept_error,
             }
         )
         progress("fos", (k + 1) / len(output_names), f"output {name}: {len(kept)} terms")

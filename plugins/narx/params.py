@@ -72,10 +72,17 @@ class NarxFamilyParams(FamilyParams):
     lags: Optional[dict[str, list[LagItem]]] = Field(
         None,
         description="regressors per data column: {name: [lags]}, a lag being an integer or {from, to, step} "
-        "(ends included); inputs may use lag 0, outputs start at 1. Default: every input [0, 1, 2], every output [1, 2]",
+        "(ends included); inputs may use lag 0, outputs start at 1. null (default): every input 0 .. L, every "
+        "output 1 .. L, with L chosen on the free-running validation error among 1 .. L_max, L_max the largest "
+        "of 6 .. 1 whose pool holds at most 600 monomials (6 for one input and one output at degree 3)",
     )
-    degree: int = Field(
-        2, ge=1, le=10, description="largest total degree of the monomials in the pool (eq. 3.10 / 3.11)"
+    degree: Optional[int] = Field(
+        None,
+        ge=1,
+        le=10,
+        description="largest total degree of the monomials in the pool (eq. 3.10 / 3.11); null (default): 1, 2 "
+        "or 3 (3 as the thesis's friction models: cubic stiffness, odd nonlinearities), chosen together with the "
+        "default lags on the free-running validation error",
     )
     constant: bool = Field(True, description="offer a constant term (always selected first)")
     terms: Optional[Union[list[str], dict[str, list[str]]]] = Field(
@@ -89,6 +96,13 @@ class NarxFamilyParams(FamilyParams):
         "cost: mse_inf): forward selection on the linearised free-running error, every step re-estimating the weights "
         "on the free run (robust to noisy outputs)",
     )
+    free_run_start: Literal["linear", "constant"] = Field(
+        "linear",
+        description="selection free_run: the model the growth starts from: linear: the constant and the linear "
+        "terms (an ARX model) that validate best in free run, with least-squares weights re-estimated on the free "
+        "run; constant: the constant alone (its free run is constant, so no fed-back term can be told apart from "
+        "it and the growth often stops there)",
+    )
     max_terms: Optional[int] = Field(None, gt=0, description="at most this many terms per output (the constant counts)")
     threshold: Optional[float] = Field(
         None,
@@ -97,12 +111,20 @@ class NarxFamilyParams(FamilyParams):
         description="stop when the next term reduces the squared error by less than this fraction "
         "of the target's energy y'y",
     )
+    stop_on: Literal["free_run", "one_step"] = Field(
+        "free_run",
+        description="selection one_step: the validation error that chooses the number of FOS terms: free_run: "
+        "of the model's free run on the validation split (what the model is for: a structure that is good one "
+        "step ahead need not be in free run, thesis 3.1.4; a model without an input term cannot win); one_step: "
+        "of the one-step predictions (thesis A.3)",
+    )
     patience: Optional[int] = Field(
-        1,
+        20,
         ge=1,
-        description="stop after this many terms without a lower validation error (one-step for one_step, "
-        "free-running for free_run) and keep the best size (1: the first rise, thesis A.3); null: do not use the "
-        "validation split",
+        description="stop after this many terms without a lower validation error and keep the best size (1: the "
+        "first rise, thesis A.3; along the FOS order the free-running error is far from monotone: a term can "
+        "destabilise the free run until a later one compensates, so the default looks 20 terms further); null: "
+        "do not use the validation split",
     )
     drop_unstable: bool = Field(
         True,
@@ -120,10 +142,11 @@ class NarxFamilyParams(FamilyParams):
         "the factor with the lowest free-running validation error",
     )
     bounds: Optional[Union[Annotated[float, Field(ge=0)], dict[str, tuple[Optional[float], Optional[float]]]]] = Field(
-        None,
+        0.5,
         description="clip the free-running output (eq. 6.25): a number m clips every output to its training range "
-        "widened by m x the range on both sides; {output: [L, U]} gives bounds in the data's units (null: that side "
-        "unbounded); null: no clipping",
+        "widened by m x the range on both sides (default 0.5: a model driven outside its training inputs stays "
+        "within plausible outputs instead of diverging); {output: [L, U]} gives bounds in the data's units (null: "
+        "that side unbounded); null: no clipping",
     )
     start: Literal["drop", "zeros"] = Field(
         "drop",
@@ -197,6 +220,11 @@ class NarxFamilyParams(FamilyParams):
         if isinstance(v, float) and v < 0:
             raise ValueError("the ridge factor must be >= 0 (or auto)")
         return v
+
+    @property
+    def max_degree(self) -> int:
+        """The pool's degree, or the largest one the search tries (``degree: null``)."""
+        return self.degree if self.degree is not None else 3
 
     def lag_table(self) -> Optional[dict[str, list[int]]]:
         """Lags per column, expanded and sorted (None: the default embedding)."""

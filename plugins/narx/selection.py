@@ -13,6 +13,12 @@ Gram matrix of the sensitivity columns. The chosen term enters with weight 0, al
 re-estimated on the free-running error (nonlinear least squares), and the loop stops at
 ``max_terms``, at ``threshold``, or when the free-running validation error has not reached a
 new low for ``patience`` terms (A.3); the best model on validation is kept.
+
+The growth starts from the linear (ARX) model that validates best (``free_run_start: linear``,
+see :func:`_linear_start`): around a constant model every fed-back term is invisible (the
+linearisation is degenerate), so a growth from the constant alone stops there on most measured
+systems. A current term whose sensitivity falls numerically into the span of the others (an
+integrator's y[t-1] and y[t-2]) is skipped by the forced selection instead of ending the growth.
 """
 
 from __future__ import annotations
@@ -27,8 +33,10 @@ from dynmodel.data.training import TrainingData
 from dynmodel.family import Progress
 
 from . import kernels
+from . import pool as pool_mod
 from .embedding import OUTPUT, Embedding, factor_lists
-from .estimation import FreeRunProblem, Scored, make_structure, refine, split_error
+from .estimation import FreeRunProblem, Scored, diverges, make_structure, output_error, refine, split_error
+from .onestep import fixed_weights
 from .params import NarxFamilyParams
 
 _ROWS = 4096  # sensitivity rows per chunk
@@ -101,6 +109,62 @@ def _sensitivity_gram(
     return G, c, yy
 
 
+def _linear_start(
+    emb: Embedding,
+    pool: np.ndarray,
+    data: TrainingData,
+    n_out: int,
+    start: int,
+    clip: tuple[np.ndarray, np.ndarray],
+    band: tuple[np.ndarray, np.ndarray],
+    p: NarxFamilyParams,
+    limit: int,
+    val: Scored | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The model the growth starts from: the constant and the linear terms (an ARX model), chosen
+    per output by FOS on the one-step error with as many terms as validate best in free run, with
+    least-squares weights.
+
+    Growing from the constant alone fails: the free run of a constant model is constant, so a fed-back
+    output term's sensitivity is a multiple of the constant's (it cannot be chosen, or enters with
+    a weight the refinement cannot move), and an input term alone is a static map that a dynamic
+    system's validation error rejects, so the growth stops with the constant (Cascaded Tanks, EMPS:
+    an integrator is never reached from zero weights). The linear model needs no such luck: one-step
+    least squares finds its dynamics directly."""
+    mats = pool_mod.regressor_matrices(data, emb)
+    train = pool_mod.patterns(data, mats, "train", emb.max_lag if p.start == "drop" else 0)
+    degree = pool.sum(axis=1)
+    linear = np.flatnonzero(degree <= 1 if p.constant else degree == 1)
+    E = pool[linear]
+    G, C = pool_mod.gram(train.X, train.Y, E)
+    forced = (0,) if p.constant else ()
+    rows, outs = [], []
+    for k in range(n_out):
+        y = train.Y[:, k]
+        score = None
+        if val is not None:
+
+            def score(order: list[int], coef: np.ndarray, k: int = k) -> float:
+                st = make_structure(emb, E[order], np.full(len(order), k, dtype=np.int64), n_out, start, clip)
+                return output_error(st, data, val, coef, band, k)
+
+        path = regression.fos_select(
+            G,
+            C[:, k],
+            float(y @ y),
+            forced=forced,
+            max_terms=min(limit, len(linear)),
+            validation=score,
+            patience=len(linear),
+        )
+        kept = path.order[: max(path.best, 1)]
+        rows.append(E[kept])
+        outs += [k] * len(kept)
+    exps = np.vstack(rows)
+    outs_arr = np.array(outs, dtype=np.int64)
+    return exps, outs_arr, fixed_weights(train, exps, outs_arr, n_out)
+
+
 def free_run_selection(
     emb: Embedding,
     pool: np.ndarray,
@@ -122,8 +186,17 @@ def free_run_selection(
         raise ValueError(
             "selection: free_run needs a stopping rule: a validation split (used with patience), max_terms or threshold"
         )
-    const = ~pool.any(axis=1)
-    if p.constant:
+    limit = p.max_terms if p.max_terms is not None else pool.shape[0]
+    if p.free_run_start == "linear":
+        exps, outs, w = _linear_start(emb, pool, data, n_out, start, clip, band, p, limit, val if use_val else None)
+        finite_clip0 = (np.maximum(clip[0], band[0]), np.minimum(clip[1], band[1]))
+        st0 = make_structure(emb, exps, outs, n_out, start, clip)
+        unstable = diverges(st0, data, scored, w, band)
+        mixes = [1.0 - i / r.ramp for i in range(1, r.ramp + 1)] if unstable else [0.0]
+        w = refine(FreeRunProblem(st0, data, scored, finite_clip0), w, mixes, r.solver, r.max_nfev, r.tol)
+        progress("select", None, f"{len(w)} terms: the linear model (ARX) re-estimated on the free run")
+    elif p.constant:
+        const = ~pool.any(axis=1)
         exps = np.repeat(pool[const][:1], n_out, axis=0)
         outs = np.arange(n_out, dtype=np.int64)
         w = np.array(
@@ -136,10 +209,11 @@ def free_run_selection(
         exps = np.zeros((0, emb.size), dtype=np.int64)
         outs = np.zeros(0, dtype=np.int64)
         w = np.zeros(0)
-    limit = p.max_terms if p.max_terms is not None else pool.shape[0]
     first = start + emb.max_lag  # scored rows whose every regressor comes from the free run itself
     finite_clip = (np.maximum(clip[0], band[0]), np.minimum(clip[1], band[1]))
-    history: list[dict[str, Any]] = [{"added": "1" if p.constant else None, "terms": int(len(w))}]
+    history: list[dict[str, Any]] = [
+        {"added": " + ".join(emb.label_of(e) for e in exps) or None, "terms": int(len(w)), "start": p.free_run_start}
+    ]
     best = None
     best_err, since_best = np.inf, 0
     while True:
@@ -169,9 +243,10 @@ def free_run_selection(
         path = regression.fos_select(
             G, c, yy, forced=tuple(range(m)), max_terms=m + 1, threshold=p.threshold, ties=1e-9
         )
-        if len(path.order) <= m:
+        added = [int(i) for i in path.order if i >= m]  # the current terms are forced (some may be skipped)
+        if not added:
             break
-        j = int(path.order[m])
+        j = added[0]
         order = np.argsort(np.append(outs, cand.output[j]), kind="stable")
         exps = np.vstack([exps, cand.exponents[j][None]])[order]
         outs = np.append(outs, cand.output[j])[order]
@@ -182,7 +257,7 @@ def free_run_selection(
         history.append(
             {
                 "added": label if n_out == 1 else f"{label} (output {int(cand.output[j]) + 1})",
-                "error_reduction": float(path.error_reduction[m] / max(yy, 1e-300)),
+                "error_reduction": float(path.error_reduction[list(path.order).index(j)] / max(yy, 1e-300)),
                 "terms": int(len(w)),
             }
         )

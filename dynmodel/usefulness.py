@@ -1,0 +1,204 @@
+"""Is a fitted model of any use? A useless model is never silent.
+
+Three findings, each a :class:`Note` with what was measured and what to try:
+
+- ``diverged``: the free run left the divergence band on some split (see :mod:`dynmodel.model`);
+- ``poor``: a held-out split (validation, test, or any other non-training key such as ``test:<name>``)
+  has a free-run NMSE of at least :data:`POOR_NMSE` percent, or no better than predicting the
+  training mean (the trivial reference: NMSE = 100 (1 + (mean_split - mean_train)^2 / var_split) %);
+- ``ignores-input``: replacing every input by its training mean changes the free run on the
+  validation split (training when there is none) by less than :data:`INPUT_DEPENDENCE` of the
+  measured output's variance, mean((y(u) - y(mean u))^2) / var(y): the model is (nearly) a constant
+  or an autonomous oscillator, whatever it scores.
+
+``dynmodel fit`` prints them as one line; ``family: auto`` and ``dynmodel diagnose`` reuse
+:func:`assess` to rank or flag models.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .data.dataset import Dataset
+    from .model import FittedModel, Run
+
+#: NMSE (percent) from which a held-out result counts as useless
+POOR_NMSE = 90.0
+#: input dependence (fraction of the output variance) below which a model ignores its input
+INPUT_DEPENDENCE = 0.01
+
+
+@dataclass
+class Note:
+    """One finding about a fitted model."""
+
+    kind: str  # "diverged" | "poor" | "ignores-input"
+    split: str | None
+    text: str  # what was measured, as a clause of a sentence
+    value: float | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"kind": self.kind, "split": self.split, "text": self.text, "value": self.value}
+
+
+def held_out_splits(metrics: Mapping[str, Any]) -> list[str]:
+    """Every split key of ``metrics`` except ``train`` (``train`` alone when nothing is held out)."""
+    keys = [k for k in metrics if k != "train"]
+    return keys or [k for k in metrics if k == "train"]
+
+
+def trivial_nmse(ds: Dataset, split: str, warmup: int = 0) -> float | None:
+    """NMSE (percent, mean over outputs) of predicting the training mean on ``split``."""
+    rows = ds.scored(split, warmup)
+    train = ds.scored("train", warmup)
+    if not rows or not train:
+        return None
+    y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
+    mean = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in train]).mean(axis=0)
+    var = y.var(axis=0)
+    if not np.all(var > 0):
+        return None
+    return float(np.mean(100.0 * np.mean((y - mean) ** 2, axis=0) / var))
+
+
+def input_dependence(
+    model: FittedModel, ds: Dataset, split: str | None = None, runs: list[Run] | None = None
+) -> float | None:
+    """mean over outputs of mean((y(u) - y(ū))^2) / var(y) on the scored samples of ``split``
+    (default validation, else train), where y(ū) is the free run with every input held at its
+    training mean. inf when only the held-input run diverges; None when it cannot be measured
+    (the model's own run diverges there, or the split is absent)."""
+    split = split or ("validation" if ds.ranges.get("validation") else "train")
+    warm = model.warmup
+    rows = ds.scored(split, warm)
+    if not rows:
+        return None
+    train_u, _ = ds.concat_inputs("train")
+    mean_u = train_u.mean(axis=0) if train_u.shape[0] else np.zeros(len(ds.input_names))
+    moved, measured, varied = [], [], []
+    for rec in sorted({r for r, _, _ in rows}):
+        r = ds.recordings[rec]
+        tune = r.y[:warm] if warm else None
+        real = runs[rec] if runs is not None else model.run(r.u, tune)
+        held = model.run(np.broadcast_to(mean_u, r.u.shape).copy(), tune)
+        for rr, a, b in rows:
+            if rr != rec:
+                continue
+            if real.diverged_at is not None and real.diverged_at < b:
+                return None
+            moved.append(held.y[a:b] if held.diverged_at is None or held.diverged_at >= b else None)
+            varied.append(real.y[a:b])
+            measured.append(r.y[a:b])
+    if any(m is None for m in moved):
+        return float("inf")
+    y = np.concatenate(measured)
+    var = y.var(axis=0)
+    if not np.all(var > 0):
+        return None
+    diff = np.concatenate(varied) - np.concatenate(moved)
+    return float(np.mean(np.mean(diff**2, axis=0) / var))
+
+
+def assess(
+    model: FittedModel, ds: Dataset | None = None, runs: list[Run] | None = None, metrics: Mapping | None = None
+) -> list[Note]:
+    """The findings of the module docstring for a fitted ``model``. Without ``ds`` only the
+    metrics are judged (no trivial reference, no input dependence)."""
+    metrics = model.metrics if metrics is None else metrics
+    notes: list[Note] = []
+    bad = next(((s, m["unstable_from"]) for s, m in metrics.items() if m.get("unstable_from")), None)
+    if bad is not None:
+        split, where = bad
+        notes.append(
+            Note(
+                "diverged",
+                split,
+                f"its free run diverges on the {split} split (sample {where['sample']} of '{where['recording']}')",
+            )
+        )
+    for split in held_out_splits(metrics):
+        value = metrics[split].get("nmse")
+        if value is None:
+            continue
+        ref = trivial_nmse(ds, split, model.warmup) if ds is not None else None
+        if value >= POOR_NMSE or (ref is not None and value >= ref):
+            worse = f", no better than the training mean's {ref:.3g} %" if ref is not None and value >= ref else ""
+            notes.append(Note("poor", split, f"its {split} NMSE is {value:.3g} %{worse}", float(value)))
+    if ds is not None and bad is None:
+        dep = input_dependence(model, ds, runs=runs)
+        if dep is not None and dep < INPUT_DEPENDENCE:
+            notes.append(
+                Note(
+                    "ignores-input",
+                    "validation" if ds.ranges.get("validation") else "train",
+                    f"it ignores its input (holding the input at its mean changes the free run by "
+                    f"{100 * dep:.2g} % of the output variance)",
+                    dep,
+                )
+            )
+    return notes
+
+
+def _auto_available() -> bool:
+    """Does this installation accept ``model: {family: auto}``?"""
+    from . import registry
+
+    if "auto" in registry.families():
+        return True
+    sources = list(registry.sources())
+    if not sources:
+        return False
+    from .errors import DynmodelError
+    from .spec import validate_spec
+
+    try:
+        validate_spec({"data": {"generator": sources[0]}, "model": {"family": "auto"}})
+    except (DynmodelError, ValueError):
+        return False
+    except Exception:  # noqa: BLE001 - a hint, never a failure
+        return False
+    return True
+
+
+def what_to_try(spec_path: str | None = None, cost: str | None = None) -> str:
+    """The usual next steps for a useless model."""
+    steps = [f"`dynmodel diagnose {spec_path or 'SPEC'}` to name what the model gets wrong"]
+    if cost is not None and cost != "mse_inf":
+        steps.append("cost: mse_inf")
+    steps.append("family: auto" if _auto_available() else "another family (`dynmodel plugins`)")
+    return "try " + ", ".join(steps[:-1]) + " or " + steps[-1]
+
+
+def summary_line(notes: list[Note], spec_path: str | None = None, cost: str | None = None) -> str | None:
+    """One line for the user: every finding but divergence (reported as an error of its own)."""
+    poor = [n for n in notes if n.kind == "poor"]
+    parts = []
+    if poor:
+        scores = ", ".join(f"{n.value:.3g} % on {n.split}" for n in poor)
+        worse = any("training mean" in n.text for n in poor)
+        parts.append(
+            f"its free-run NMSE is {scores} ({'no better than predicting the training mean' if worse else '>= 90 %'})"
+        )
+    parts += [n.text for n in notes if n.kind not in ("poor", "diverged")]
+    if not parts:
+        return None
+    return f"this model is of little use: {'; '.join(parts)}. Fix: {what_to_try(spec_path, cost)}"
+
+
+def stability_fix(hint: str, cost: str | None) -> str:
+    """A family's advice for a diverging free run without the options the spec already uses
+    (no 'use cost: mse_inf' when the cost is mse_inf)."""
+    if cost != "mse_inf" or "cost: mse_inf" not in hint:
+        return hint
+    import re
+
+    text = re.sub(r"cost: mse_inf(\s*\([^)]*\))?(,\s*|\s+or\s+)?", "", hint).strip()
+    text = re.sub(r"\s+", " ", text).rstrip(", ")
+    if text in ("", "use"):
+        return "the free run diverges even with cost: mse_inf; try a smaller model or `dynmodel diagnose`"
+    return text

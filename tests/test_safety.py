@@ -1,0 +1,427 @@
+"""Issue 15 below the command line: output paths, model-file writes, one place for errors, data
+checks, encodings, the divergence band for every family, usefulness notes, predict's table."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import warnings
+
+import h5py
+import numpy as np
+import pytest
+from bad_inputs import base_spec, csv_text, write_csv
+from conftest import make_spec, narx
+
+from dynmodel import engine, paths, store
+from dynmodel.data import load_dataset
+from dynmodel.data.readers import read_columns
+from dynmodel.errors import DataError, Interrupted, OutputError
+from dynmodel.explain import explain, internal_error_line
+from dynmodel.model import band_check
+from dynmodel.textfiles import DataNote, decode_text
+from dynmodel.usefulness import assess, held_out_splits, input_dependence, stability_fix, summary_line
+
+
+def _spec(folder, **data):
+    return make_spec(base_spec(**data), folder)
+
+
+@pytest.fixture
+def folder(tmp_path):
+    u, y = narx(600, 1)
+    write_csv(tmp_path / "run.csv", {"t": np.arange(600.0), "u": u, "y": y})
+    return tmp_path
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fitted")
+    u, y = narx(600, 1)
+    write_csv(d / "run.csv", {"t": np.arange(600.0), "u": u, "y": y})
+    spec = make_spec(base_spec(), d)
+    ds = load_dataset(spec)
+    model, runs = engine.fit_dataset(spec, ds)
+    return model, ds, runs, d
+
+
+# ---------------------------------------------------------------- paths
+
+
+def test_output_checks_name_each_problem(folder):
+    data = folder / "run.csv"
+    with pytest.raises(OutputError, match="data file the command reads"):
+        paths.check_output(data, "model", {"data file": [data]}, option="--out")
+    with pytest.raises(OutputError, match="is a folder"):
+        paths.check_output(folder, "model")
+    (folder / "notes.txt").write_text("mine")
+    with pytest.raises(OutputError, match="a model replaces only a model"):
+        paths.check_output(folder / "notes.txt", "model", force=True)
+    with pytest.raises(OutputError, match="add --force"):
+        paths.check_output(folder / "notes.txt", "json")
+    assert paths.check_output(folder / "notes.txt", "json", force=True) == folder / "notes.txt"
+    with pytest.raises(OutputError, match="'.*run.csv' is a file"):
+        paths.check_output(data / "m.h5", "model")
+    with pytest.raises(OutputError, match="the file system allows 255"):
+        paths.check_output(folder / ("y" * 300 + ".h5"), "model")
+    with pytest.raises(OutputError, match="not a figure format"):
+        paths.check_output(folder / "plot.txt", "plot")
+    with pytest.raises(OutputError, match="cannot create files in '/proc'"):
+        paths.check_output("/proc/m.h5", "model")
+    assert paths.check_output(folder / "new" / "deeper" / "m.h5", "model") == folder / "new" / "deeper" / "m.h5"
+    assert not (folder / "new").exists()  # checking creates nothing
+    with pytest.raises(OutputError, match="--out and --json name the same file"):
+        paths.check_outputs([(folder / "a.h5", "model", "--out"), (folder / "a.h5", "json", "--json")])
+
+
+def test_previous_outputs_of_the_same_kind_are_replaced_without_force(folder, fitted):
+    model = fitted[0]
+    store.save(model, folder / "m.h5")
+    paths.check_output(folder / "m.h5", "model")
+    (folder / "s.json").write_text(json.dumps({"metrics": {}, "model": "m.h5"}))
+    paths.check_output(folder / "s.json", "json")
+    (folder / "p.csv").write_text("t,y,measured\n0,1,1\n")
+    paths.check_output(folder / "p.csv", "csv", columns=[["t", "y", "measured"], ["t", "y"]])
+    with pytest.raises(OutputError, match="--force"):
+        paths.check_output(folder / "p.csv", "csv", columns=["t", "y"])
+    with pytest.raises(OutputError, match="replaces a CSV file only when asked"):
+        paths.check_output(folder / "run.csv", "csv")  # generate: never without --force
+    from dynmodel.plots import recording
+
+    recording(folder / "r.png", np.arange(5.0), np.zeros((5, 1)), np.zeros((5, 1)), ["u"], ["y"], "r")
+    paths.check_output(folder / "r.png", "plot")
+    (folder / "photo.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 64)
+    with pytest.raises(OutputError, match="a PNG image, not a plot dynmodel wrote"):
+        paths.check_output(folder / "photo.png", "plot")
+
+
+def test_report_folders(folder):
+    paths.check_output(folder / "fresh", "report")
+    (folder / "empty").mkdir()
+    paths.check_output(folder / "empty", "report")
+    (folder / "old").mkdir()
+    (folder / "old" / "index.md").write_text("# Diagnosis of `x`\n")
+    paths.check_output(folder / "old", "report")
+    with pytest.raises(OutputError, match="not a diagnosis report"):
+        paths.check_output(folder, "report")
+    with pytest.raises(OutputError, match="the report needs a folder"):
+        paths.check_output(folder / "run.csv", "report")
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_read_only_folder_and_file(folder):
+    (folder / "ro").mkdir()
+    (folder / "ro").chmod(0o555)
+    try:
+        with pytest.raises(OutputError, match="permission denied"):
+            paths.check_output(folder / "ro" / "m.h5", "model")
+    finally:
+        (folder / "ro").chmod(0o755)
+    (folder / "locked.json").write_text("{}")
+    (folder / "locked.json").chmod(0o444)
+    with pytest.raises(OutputError, match="read-only"):
+        paths.check_output(folder / "locked.json", "json", force=True)
+
+
+def test_spec_inputs_and_safe_names(folder):
+    (folder / "test.csv").write_text((folder / "run.csv").read_text())
+    spec = _spec(folder, split={"train": 0.7, "validation": 0.3}, test={"path": "test.csv"})
+    roles = paths.spec_inputs(spec, folder / "s.yaml")
+    assert roles["spec"] == [folder / "s.yaml"]
+    assert sorted(p.name for p in roles["data file"]) == ["run.csv", "test.csv"]
+    assert paths.safe_name("x" * 300) == "x" * 80
+    assert paths.safe_name("my model/v2: µ") == "my-model-v2"
+    assert paths.safe_name("///") == "model"
+
+
+# ---------------------------------------------------------------- model files
+
+
+def test_model_files_follow_the_umask_and_stale_temporaries_go(folder, fitted):
+    model = fitted[0]
+    old = os.umask(0o027)
+    try:
+        store.save(model, folder / "m.h5")
+    finally:
+        os.umask(old)
+    assert (folder / "m.h5").stat().st_mode & 0o777 == 0o640
+    store.save(model, folder / "n.h5")
+    assert (folder / "n.h5").stat().st_mode & 0o777 == 0o666 & ~old
+    host = store._host()
+    alive = folder / f".m.h5.{os.getpid()}@{host}.aaaa.tmp"  # a write in progress (this process)
+    dead = folder / f".m.h5.4194000@{host}.bbbb.tmp"
+    recent = folder / ".m.h5.cccc.tmp"  # unknown writer, recent: may still be writing
+    ancient = folder / ".m.h5.dddd.tmp"
+    for p in (alive, dead, recent, ancient):
+        p.write_bytes(b"partial")
+    os.utime(ancient, (1e9, 1e9))
+    if _alive(4194000):
+        pytest.skip("pid 4194000 is running")
+    store.save(model, folder / "m.h5")
+    assert alive.exists() and recent.exists() and not dead.exists() and not ancient.exists()
+    assert store.load(folder / "m.h5").metrics == model.metrics
+
+
+def _alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+# ---------------------------------------------------------------- one place for errors
+
+
+def test_explain_maps_expected_failures_and_leaves_bugs():
+    full = explain(OSError(errno.ENOSPC, "No space left on device", "/data/m.h5"))
+    assert (
+        full.line()
+        == "/data/m.h5: cannot access the file: no space left on the device. Fix: free some space or write to another disk"
+    )
+    assert isinstance(explain(KeyboardInterrupt()), Interrupted) and explain(KeyboardInterrupt()).exit_code == 130
+    assert "not enough memory" in explain(MemoryError()).line()
+    assert explain(ValueError("index out of range")) is None
+    assert explain(ZeroDivisionError()) is None
+    assert "a bug in dynmodel" in internal_error_line(KeyError("x"))
+
+
+def test_cli_interrupt_and_bug_lines(cli, folder, monkeypatch):
+    from dynmodel import engine as eng
+
+    def stop(*a, **k):
+        raise KeyboardInterrupt
+
+    (folder / "s.yaml").write_text(json.dumps(base_spec()))
+    monkeypatch.chdir(folder)
+    monkeypatch.setattr(eng, "fit_dataset", stop)
+    r = cli("fit", "s.yaml")
+    assert r.exit_code == 130 and r.stderr.strip() == (
+        "error: interrupted (Ctrl-C). Fix: rerun the command; files are written only when it completes"
+    )
+    assert not (folder / "m.h5").exists()
+
+    def bug(*a, **k):
+        raise IndexError("list index out of range")
+
+    monkeypatch.setattr(eng, "fit_dataset", bug)
+    r = cli("fit", "s.yaml")
+    assert r.exit_code == 3 and r.stderr.startswith("internal error: IndexError") and len(r.stderr.splitlines()) == 1
+
+
+def test_an_interrupted_annealing_says_so(monkeypatch):
+    from dynmodel_plugins.annealed_rnn import search
+
+    calls = {"n": 0}
+    original = search.Evaluator.score
+
+    def score(self, state):
+        calls["n"] += 1
+        if calls["n"] == 4:
+            raise KeyboardInterrupt
+        return original(self, state)
+
+    monkeypatch.setattr(search.Evaluator, "score", score)
+    raw = {
+        "data": {"generator": "narx-system", "n": 400, "split": {"train": 0.7, "validation": 0.3}, "transient": 20},
+        "model": {"family": "annealed-rnn", "params": {"size": 5, "steps": 30, "workers": 1}},
+    }
+    with pytest.warns(UserWarning, match="annealing was interrupted \\(Ctrl-C\\): the model keeps the best network"):
+        model = engine.fit(make_spec(raw))
+    assert model.family.search_["interrupted"]
+
+
+# ---------------------------------------------------------------- encodings and formats
+
+
+@pytest.mark.parametrize("encoding", ["utf-8", "utf-8-sig", "utf-16", "utf-16-le", "utf-16-be", "latin-1"])
+def test_text_encodings(tmp_path, encoding):
+    u, y = narx(50, 2)
+    text = csv_text({"u": u, "y": y, "Temp_°C": np.zeros(50)}, sep="\t")
+    (tmp_path / "d.csv").write_bytes(text.encode(encoding))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        cols = read_columns(tmp_path / "d.csv", ["u", "y", "Temp_°C"])
+    np.testing.assert_allclose(cols["y"], y, rtol=1e-9)
+    notes = [str(w.message) for w in caught if issubclass(w.category, DataNote)]
+    assert notes == (
+        ["%s: not valid UTF-8, read as Latin-1 (check accented column names; save as UTF-8)" % (tmp_path / "d.csv")]
+        if encoding == "latin-1"
+        else []
+    )
+
+
+def test_binary_content_is_named():
+    with pytest.raises(DataError, match="not a text file: it looks like a gzip-compressed file"):
+        decode_text(b"\x1f\x8b\x08\x00" + bytes(range(256)), "d.csv")
+
+
+def test_content_decides_the_format(tmp_path):
+    u, y = narx(40, 3)
+    with h5py.File(tmp_path / "d.csv", "w") as f:
+        f["u"], f["y"] = u, y
+    with pytest.warns(DataNote, match="named .csv but holds an HDF5 file"):
+        np.testing.assert_array_equal(read_columns(tmp_path / "d.csv", ["y"])["y"], y)
+    write_csv(tmp_path / "d.h5", {"u": u, "y": y})
+    with pytest.warns(DataNote, match="named .h5 but holds text"):
+        np.testing.assert_allclose(read_columns(tmp_path / "d.h5", ["u"])["u"], u, rtol=1e-9)
+    np.savez(tmp_path / "o.npz", u=np.array([1, None], dtype=object))
+    with pytest.raises(DataError, match="'u' is an object array") as info:
+        read_columns(tmp_path / "o.npz", ["u"])
+    assert "allow_pickle" not in str(info.value)
+
+
+def test_decimal_commas(tmp_path):
+    u, y = narx(30, 4)
+    write_csv(tmp_path / "semi.csv", {"u": u, "y": y}, sep=";", decimal=",")
+    with pytest.warns(DataNote, match="decimal commas read as decimal points"):
+        np.testing.assert_allclose(read_columns(tmp_path / "semi.csv", ["y"])["y"], y, rtol=1e-9)
+    write_csv(tmp_path / "comma.csv", {"u": u, "y": y}, sep=",", decimal=",")
+    with pytest.raises(DataError, match="decimal commas with comma separators"):
+        read_columns(tmp_path / "comma.csv", ["u", "y"])
+
+
+# ---------------------------------------------------------------- data checks
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (
+            lambda d: d.__setitem__("y", np.full(600, 2.5)),
+            "output 'y' is constant \\(2.5\\) on every scored sample of the train split",
+        ),
+        (
+            lambda d: d["y"].__setitem__(slice(480, None), 1.0),
+            "constant \\(1\\) on every scored sample of the test split",
+        ),
+        (lambda d: d.__setitem__("u", np.ones(600)), "input 'u' is constant \\(1\\) on every training sample"),
+        (lambda d: d["y"].__setitem__(77, 1e300), "'y' holds 1e\\+300 at sample 77 of 'run.csv', too large"),
+        (
+            lambda d: d.__setitem__("y", d["y"] * np.exp(np.linspace(0, 101, 600))),
+            "reaches -2.11e\\+44 at sample 599 of 'run.csv'",
+        ),
+        (lambda d: d.__setitem__("y", d["u"].copy()), "input 'u' and output 'y' hold identical values"),
+    ],
+)
+def test_data_no_model_can_use_is_one_line_at_load(folder, change, message):
+    u, y = narx(600, 1)
+    d = {"t": np.arange(600.0), "u": u, "y": y}
+    change(d)
+    write_csv(folder / "run.csv", d)
+    with pytest.raises(DataError, match=message):
+        load_dataset(_spec(folder))
+
+
+def test_a_tune_in_longer_than_a_split(folder):
+    raw = base_spec(split={"train": 0.5, "validation": 0.5})
+    raw["model"]["params"] = {"size": 10, "mode": "external", "tune_in": 700}
+    spec = make_spec(raw, folder)
+    with pytest.raises(DataError, match="tunes in on the first 700 samples .* no scored sample in the train split"):
+        engine.check_plan(spec, load_dataset(spec))
+
+
+def test_segments_are_described_with_file_indices_and_test_columns_by_their_own_name(folder):
+    spec = _spec(folder, segments=[[100, 600]], split={"train": 0.5, "validation": 0.5})
+    from dynmodel.data import describe
+
+    rows = {r["split"]: r["segments"] for r in describe(load_dataset(spec))}
+    assert rows == {"train": ["run.csv[100:350]"], "validation": ["run.csv[350:600]"]}
+    u, y = narx(300, 9)
+    u[150] = 10 * np.abs(u).max()
+    write_csv(folder / "bench.csv", {"force_cmd": u, "pos": y})
+    spec = _spec(
+        folder,
+        split={"train": 0.7, "validation": 0.3},
+        test={"path": "bench.csv", "input": ["force_cmd"], "output": ["pos"]},
+    )
+    notes = [n for n in load_dataset(spec).excursion_notes() if n.startswith("the test input")]
+    assert len(notes) == 1 and notes[0].startswith("the test input 'force_cmd' leaves the training range")
+
+
+# ---------------------------------------------------------------- divergence band and usefulness
+
+
+def test_band_check_cuts_after_tune_in():
+    y = np.array([[1e9], [0.0], [0.5], [50.0], [0.1]])
+    out, k = band_check(y, (np.array([-10.0]), np.array([10.0])), None, start=1)
+    assert k == 3 and np.isnan(out[3:]).all() and out[2, 0] == 0.5
+    assert band_check(y[1:3], (np.array([-10.0]), np.array([10.0])))[1] is None
+    assert band_check(y, None, 2, start=1)[1] == 2
+
+
+def test_usefulness_of_a_good_and_of_a_useless_model(fitted, folder):
+    model, ds, runs, _ = fitted
+    assert assess(model, ds, runs) == []
+    assert input_dependence(model, ds, runs=runs) > 0.5
+    rng = np.random.default_rng(3)
+    write_csv(folder / "noise.csv", {"u": rng.standard_normal(600), "y": rng.standard_normal(600)})
+    spec = make_spec(base_spec("noise.csv"), folder)
+    ds2 = load_dataset(spec)
+    useless, runs2 = engine.fit_dataset(spec, ds2)
+    notes = assess(useless, ds2, runs2)
+    assert {n.kind for n in notes} >= {"poor"} and all(
+        n.split in ("validation", "test") for n in notes if n.kind == "poor"
+    )
+    line = summary_line(notes, "s.yaml", "mse1")
+    assert (
+        line.startswith("this model is of little use: its free-run NMSE is")
+        and "Fix: try `dynmodel diagnose s.yaml`" in line
+    )
+    assert "cost: mse_inf" in line and "cost: mse_inf" not in summary_line(notes, "s.yaml", "mse_inf")
+
+
+def test_a_constant_model_ignores_its_input(fitted):
+    model, ds, runs, _ = fitted
+    import copy
+
+    const = copy.deepcopy(model)
+    const.family.W_ = np.zeros_like(const.family.W_)
+    const.family.D_ = np.zeros_like(const.family.D_)
+    const.family.w0_ = np.zeros_like(const.family.w0_)  # the training mean (standard scaling)
+    const.metrics = {k: dict(v) for k, v in model.metrics.items()}
+    notes = assess(const, ds)
+    assert [n.kind for n in notes if n.kind == "ignores-input"] == ["ignores-input"]
+    assert input_dependence(const, ds) == 0.0
+
+
+def test_split_keys_are_generic():
+    metrics = {"train": {"nmse": 1.0}, "validation": {"nmse": 2.0}, "test:bench": {"nmse": 95.0}}
+    assert held_out_splits(metrics) == ["validation", "test:bench"]
+    assert held_out_splits({"train": {}}) == ["train"]
+
+
+def test_stability_fix_does_not_repeat_the_cost():
+    narx_hint = (
+        "use cost: mse_inf (free-running estimation), bounds: 0.1 (clip the output, eq. 6.25), ridge: auto, or a "
+        "lower degree"
+    )
+    assert stability_fix(narx_hint, "mse1") == narx_hint
+    assert stability_fix(narx_hint, "mse_inf") == (
+        "use bounds: 0.1 (clip the output, eq. 6.25), ridge: auto, or a lower degree"
+    )
+    assert stability_fix("use cost: mse_inf, the internal mode or a smaller spectral scale", "mse_inf") == (
+        "use the internal mode or a smaller spectral scale"
+    )
+    assert "even with cost: mse_inf" in stability_fix("use cost: mse_inf", "mse_inf")
+
+
+# ---------------------------------------------------------------- predict
+
+
+def test_predict_keeps_the_time_column_and_says_where_the_plot_is(cli, fitted, tmp_path, monkeypatch):
+    model, *_ = fitted
+    store.save(model, tmp_path / "m.h5")
+    u, y = narx(200, 5)
+    write_csv(tmp_path / "run.csv", {"time": 12.5 + np.arange(200) * 1.0, "u": u, "y": y})
+    monkeypatch.chdir(tmp_path)
+    r = cli("predict", "m.h5", "--input", "run.csv", "--out", "p.csv", "--plot", "p.png")
+    assert r.exit_code == 0, r.stderr
+    assert "plot written to p.png" in r.stderr and (tmp_path / "p.png").stat().st_size > 5000
+    text = (tmp_path / "p.csv").read_text().splitlines()
+    assert text[0] == "time,y" and text[1].startswith("12.5,")
+    r = cli("predict", "m.h5", "--input", "run.csv", "--out", "p.csv")  # replaces its own prediction
+    assert r.exit_code == 0, r.stderr
