@@ -111,6 +111,18 @@ ROWS = [
         "states at t, t-1, t-2, t-3 time units (4 x 97 features; not the thesis's readout)",
         readout="delayed",
     ),
+    Row(
+        "delays-10-20-30",
+        "readout",
+        "readout_delays [10, 20, 30]: the delayed states in the family, annealed on that readout",
+        {"readout_delays": [10, 20, 30]},
+    ),
+    Row(
+        "delays-5-to-50",
+        "readout",
+        "readout_delays [5, 10, ..., 50] (11 x 97 features)",
+        {"readout_delays": list(range(5, 51, 5))},
+    ),
     # capacity and task (evidence, not the thesis protocol)
     Row("size-64", "capacity", "64 elements (feed-forward: 60 extra links)", {"size": 64, "extra_links": 60}),
     Row("size-128", "capacity", "128 elements (feed-forward: 120 extra links)", {"size": 128, "extra_links": 120}),
@@ -136,6 +148,18 @@ ROWS = [
         "combined",
         "input_scale 1.5, 0.2 time units per sample, 2000 annealing steps",
         {"input_scale": 1.5, "time_scale": 0.2, "steps": 2000},
+    ),
+    Row(
+        "input-1.5-delays-10-20-30",
+        "combined",
+        "input_scale 1.5 and readout_delays [10, 20, 30]",
+        {"input_scale": 1.5, "readout_delays": [10, 20, 30]},
+    ),
+    Row(
+        "input-1.5-delays-5-to-50",
+        "combined",
+        "input_scale 1.5 and readout_delays [5, 10, ..., 50]",
+        {"input_scale": 1.5, "readout_delays": list(range(5, 51, 5))},
     ),
     # other families on the same data
     Row(
@@ -206,9 +230,16 @@ def readout_nmse(kind: str, strategy: str, seed: int) -> float:
     model = baseline_model(strategy, seed)
     spec = make(BY_KEY["baseline"], strategy, seed)
     ds = load_dataset(spec)
+    from dynmodel_plugins.lorenz_net.elements import simulate_network
+
     fam = model.family
-    rec = {s: [(r, a, b) for r, a, b in ds.scored(s)] for s in ("train", "validation", "test")}
-    states = [fam._states(model.preprocessor.inputs(r.u)).reshape(r.n, -1) for r in ds.recordings]
+    rec = {s: ds.scored(s) for s in ("train", "validation", "test")}
+    states = []
+    for r in ds.recordings:
+        X, _ = simulate_network(
+            fam.element_params_, fam.C_, fam.B_, model.preprocessor.inputs(r.u), fam.dt_, fam.params.substeps
+        )
+        states.append(X.reshape(X.shape[0], -1))
     if kind == "delayed":
         states = [_lagged(F, (0, 10, 20, 30)) for F in states]
 

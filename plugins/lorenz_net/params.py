@@ -45,6 +45,13 @@ class LorenzNetParams(FamilyParams):
         description="gain of the external input into the elements it drives (b_i of eq. 4.59; 1: the "
         "drive u of eq. 4.52 as given). On the thesis's Rossler task 1.5 - 2 is better (README, ablation)",
     )
+    readout_delays: tuple[int, ...] = Field(
+        (),
+        description="delays (samples) of the element states added to the readout: y_t = W [xi_t, "
+        "xi_(t-d1), ...] (empty: the thesis's readout of the 3M current states). The elements forget the "
+        "Rossler drive within about one time unit; states 1 - 3 time units old (10, 20, 30 samples at 0.1) "
+        "give the readout the memory a 10-time-unit horizon needs (docs/ablations.md)",
+    )
     substeps: int = Field(4, ge=1, description="RK4 steps per sampling interval")
     time_scale: Optional[float] = Field(
         None,
@@ -63,6 +70,8 @@ class LorenzNetParams(FamilyParams):
             lo, hi = getattr(self, name)
             if not 0 <= lo <= hi:
                 raise ValueError(f"{name} must satisfy 0 <= low <= high")
+        if any(d <= 0 for d in self.readout_delays) or len(set(self.readout_delays)) < len(self.readout_delays):
+            raise ValueError(f"readout_delays must be distinct positive sample counts, got {list(self.readout_delays)}")
         if self.strategy == "feed-forward" and self.layers > self.size:
             raise ValueError(f"{self.layers} layers need at least as many elements (size {self.size})")
         return self

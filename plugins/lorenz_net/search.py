@@ -18,7 +18,7 @@ from dynmodel.moments import Moments, chunk_rows, split_blocks
 
 from .elements import descendants, simulate_network
 from .params import LorenzNetParams
-from .streaming import readout_moments
+from .streaming import delayed, readout_moments
 
 WEIGHT_LOW, WEIGHT_HIGH = 0.5, 1.5  # couplings from [-1.5, -0.5] U [0.5, 1.5] (thesis 4.4.2)
 #: trajectories cached by one evaluator (one restart) at most; above, every candidate is integrated
@@ -171,7 +171,7 @@ class Evaluator:
                 self.finite[k, todo] = np.isfinite(self.states[k][:, todo, :]).all(axis=(0, 2))
         self.element_integrations += len(todo) * len(self.data.series)
         self.cached = s
-        return [X.reshape(X.shape[0], -1) for X in self.states]
+        return [delayed(X.reshape(X.shape[0], -1), self.p.readout_delays) for X in self.states]
 
     def readout(self, F: list[np.ndarray]) -> regression.LinearFit:
         """Least-squares readout on the training rows from the square-root moments of the states (as
@@ -205,7 +205,9 @@ class Evaluator:
     def _streamed_score(self, s: LorenzState) -> float:
         """The same objective without the cache: the whole network integrated chunk by chunk, the
         readout from the training moments, the error from the validation moments."""
-        m = readout_moments(s.params, s.C, s.B, self.dt, self.p.substeps, self.data, ("train", "validation"))
+        m = readout_moments(
+            s.params, s.C, s.B, self.dt, self.p.substeps, self.data, ("train", "validation"), self.p.readout_delays
+        )
         self.element_integrations += s.params.shape[0] * len(self.data.series)
         if not (m["train"].finite and m["validation"].finite):
             return np.inf
