@@ -44,7 +44,9 @@ class Row:
     params: dict[str, Any] = field(default_factory=dict)  # model.params overrides
     data: dict[str, Any] = field(default_factory=dict)  # data overrides (generator params under "params")
     model: dict[str, Any] | None = None  # replaces the whole model section (other families)
-    readout: str | None = None  # ridge | fos | delayed: refit the baseline readout; euler: random Euler networks
+    # ridge | fos | lstsq (with ``lags``): refit the baseline readout; euler: random Euler networks
+    readout: str | None = None
+    lags: tuple[int, ...] = (0,)  # readout refits: the states at these delays (samples)
     fresh_data: bool = False  # generator seeds 100 + seed (train) / 200 + seed (test)
     strategies: tuple[str, ...] = STRATEGIES
 
@@ -108,8 +110,30 @@ ROWS = [
     Row(
         "readout-delayed",
         "readout",
-        "states at t, t-1, t-2, t-3 time units (4 x 97 features; not the thesis's readout)",
-        readout="delayed",
+        "states at t, t-1, t-2, t-3 time units (4 x 97 features), least squares on the annealed networks",
+        readout="lstsq",
+        lags=(0, 10, 20, 30),
+    ),
+    Row(
+        "readout-delayed-5-to-50",
+        "readout",
+        "states at t and every 0.5 time units up to t-5 (11 x 97 features), least squares",
+        readout="lstsq",
+        lags=tuple(range(0, 51, 5)),
+    ),
+    Row(
+        "readout-delayed-10-to-100",
+        "readout",
+        "states at t and every time unit up to t-10 (11 x 97 features), least squares",
+        readout="lstsq",
+        lags=tuple(range(0, 101, 10)),
+    ),
+    Row(
+        "readout-delayed-5-to-50-ridge",
+        "readout",
+        "states at t and every 0.5 time units up to t-5, ridge with the penalty chosen on validation",
+        readout="ridge",
+        lags=tuple(range(0, 51, 5)),
     ),
     Row(
         "delays-10-20-30",
@@ -223,7 +247,7 @@ def _lagged(F: np.ndarray, lags: tuple[int, ...]) -> np.ndarray:
     return np.hstack([np.vstack([np.repeat(F[:1], k, axis=0), F[: len(F) - k]]) for k in lags])
 
 
-def readout_nmse(kind: str, strategy: str, seed: int) -> float:
+def readout_nmse(kind: str, strategy: str, seed: int, lags: tuple[int, ...] = (0,)) -> float:
     """Test NMSE of the baseline's annealed network with another readout over its 3M states."""
     from dynmodel.data import load_dataset
 
@@ -240,8 +264,8 @@ def readout_nmse(kind: str, strategy: str, seed: int) -> float:
             fam.element_params_, fam.C_, fam.B_, model.preprocessor.inputs(r.u), fam.dt_, fam.params.substeps
         )
         states.append(X.reshape(X.shape[0], -1))
-    if kind == "delayed":
-        states = [_lagged(F, (0, 10, 20, 30)) for F in states]
+    if lags != (0,):
+        states = [_lagged(F, lags) for F in states]
 
     def rows(split):
         return np.vstack([states[r][a:b] for r, a, b in rec[split]]), np.vstack(
@@ -312,7 +336,7 @@ def run_one(row: Row, strategy: str, seed: int) -> float:
     if row.readout == "euler":
         return euler_nmse(strategy, seed)
     if row.readout is not None:
-        return readout_nmse(row.readout, strategy, seed)
+        return readout_nmse(row.readout, strategy, seed, row.lags)
     model = baseline_model(strategy, seed) if row.key == "baseline" else engine.fit(make(row, strategy, seed))
     value = model.metrics["test"]["nmse"]
     return float("inf") if value is None else float(value)

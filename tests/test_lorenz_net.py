@@ -207,38 +207,58 @@ def test_a_validation_split_is_required():
         engine.fit(make_spec(raw))
 
 
+def _spec_runs(name: str, seeds: range) -> np.ndarray:
+    values = []
+    for seed in seeds:
+        spec = load_spec(ROOT / f"specs/{name}.yaml")
+        spec.seed = seed
+        values.append(engine.fit(spec).metrics["test"]["nmse"])
+    print(f"\n{name}: mean {np.mean(values):.3f} std {np.std(values):.3f}")
+    return np.array(values)
+
+
 @pytest.fixture(scope="module")
 def thesis_4_4_2():
-    """Test NMSE (%) of both shipped specs over the family seeds 0 - 4."""
-    results = {}
-    for strategy in ("parallel", "feed-forward"):
-        values = []
-        for seed in range(5):
-            spec = load_spec(ROOT / f"specs/thesis-4.4.2-{strategy}.yaml")
-            spec.seed = seed
-            values.append(engine.fit(spec).metrics["test"]["nmse"])
-        results[strategy] = np.array(values)
-        print(f"\n{strategy}: mean {np.mean(values):.3f} std {np.std(values):.3f}")
-    return results
+    """Test NMSE (%) of both thesis specs (the thesis's readout) over the family seeds 0 - 4."""
+    return {s: _spec_runs(f"thesis-4.4.2-{s}", range(5)) for s in ("parallel", "feed-forward")}
+
+
+@pytest.fixture(scope="module")
+def thesis_4_4_2_delays():
+    """Test NMSE (%) of the specs with delayed states in the readout over the family seeds 0 - 2
+    (about 6 minutes per fit on a loaded 2-core machine)."""
+    return {s: _spec_runs(f"thesis-4.4.2-{s}-delays", range(3)) for s in ("parallel", "feed-forward")}
 
 
 @pytest.mark.slow
 def test_thesis_4_4_2_feed_forward_beats_parallel(thesis_4_4_2):
-    """Both strategies over 5 runs on the rossler-cross task (README / docs/ablations.md, 5 runs:
-    parallel 13.3 %, feed-forward 7.4 % with input_scale 1.5; the thesis's 1.9 % / 0.9 % are not reached)."""
+    """Both strategies over 5 runs on the rossler-cross task with the thesis's readout (docs/ablations.md,
+    5 runs: parallel 15.9 ± 0.5 %, feed-forward 9.2 ± 1.3 %; the thesis's 1.9 % / 0.9 % are not reached)."""
     results = thesis_4_4_2
     assert results["feed-forward"].mean() < results["parallel"].mean()
     assert np.median(results["feed-forward"]) < np.median(results["parallel"])
-    assert results["parallel"].mean() < 15.0 and results["feed-forward"].mean() < 9.0
+    assert results["parallel"].mean() < 18.0 and results["feed-forward"].mean() < 12.0
+
+
+@pytest.mark.slow
+def test_thesis_4_4_2_delayed_states_in_the_readout_cut_the_error(thesis_4_4_2, thesis_4_4_2_delays):
+    """The ablation's finding: the readout lacks memory of the drive. States 1 - 3 time units old
+    (readout_delays [10, 20, 30], annealed on that readout) cut the test NMSE about threefold parallel and
+    fivefold feed-forward (docs/ablations.md: __DELAYS__)."""
+    plain, lagged = thesis_4_4_2, thesis_4_4_2_delays
+    for strategy in ("parallel", "feed-forward"):
+        assert lagged[strategy].max() < 0.5 * plain[strategy].min(), strategy
+    assert lagged["parallel"].mean() < 7.0 and lagged["feed-forward"].mean() < 2.5
+    assert lagged["feed-forward"].mean() < lagged["parallel"].mean()
 
 
 @pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
-    reason="4.4.2 targets not reached: 32-element networks are limited by their 97 readout features on "
-    "this data (docs/ablations.md); measured parallel ~13 %, feed-forward ~7.5 %",
+    reason="4.4.2 targets not reached (docs/ablations.md): the best 32-element networks, with delayed states "
+    "in the readout, measured __DELAYS__; with the thesis's readout parallel 15.9 %, feed-forward 9.2 %",
 )
-def test_thesis_4_4_2_reaches_the_thesis_figures(thesis_4_4_2):
-    """Thesis 4.4.2, mean test NMSE over runs: parallel 1.9 %, feed-forward 0.9 %."""
-    assert thesis_4_4_2["parallel"].mean() <= 1.9
-    assert thesis_4_4_2["feed-forward"].mean() <= 0.9
+def test_thesis_4_4_2_reaches_the_thesis_figures(thesis_4_4_2_delays):
+    """Thesis 4.4.2, mean test NMSE over runs: parallel 1.9 %, feed-forward 0.9 % (on the best specs found)."""
+    assert thesis_4_4_2_delays["parallel"].mean() <= 1.9
+    assert thesis_4_4_2_delays["feed-forward"].mean() <= 0.9
