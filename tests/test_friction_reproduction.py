@@ -85,14 +85,44 @@ def test_645_default_plant_reproduces_the_published_p_control_and_perfect_model_
     assert np.mean([r["max_p"] for r in previous]) < 0.18 and np.mean([r["beta"] for r in previous]) < 97.0
 
 
-@pytest.fixture(scope="module")
-def control_645(tmp_path_factory):
-    d = tmp_path_factory.mktemp("c645")
-    model = fitted("thesis-6.4.5-rnn", d)
+def _control(name: str, d):
+    model = fitted(name, d)
     data = model.spec["data"]
     plant, _ = ctl.make_plant(data["generator"], data["params"])
     report = ctl.run(model, plant, ctl.Settings(realizations=5))
     return model, report.summary()
+
+
+@pytest.fixture(scope="module")
+def control_645(tmp_path_factory):
+    return _control("thesis-6.4.5-rnn", tmp_path_factory.mktemp("c645"))
+
+
+@pytest.fixture(scope="module")
+def control_645_esn(tmp_path_factory):
+    return _control("thesis-6.4.5-esn", tmp_path_factory.mktemp("c645esn"))
+
+
+@pytest.mark.slow
+def test_645_esn_with_wide_input_weights_is_the_best_feedforward(control_645_esn):
+    """The best model of the ablation on the calibrated plant (docs/ablations.md; seed 0: NMSE_s 0.75 %,
+    alpha 97.6 %, beta 82.6 %): input weights of std 30 put the turnover of the friction after a reversal
+    into the nonlinear part of tanh (std 3: NMSE_s 1.5 %, alpha 96.0 %, beta 74 %)."""
+    model, s = control_645_esn
+    assert model.metrics["test"]["nmse"] < 1.0
+    assert s["model"]["alpha"]["mean"] > 97.0 and s["model"]["beta"]["mean"] > 79.0
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="6.4.5 targets not reached on the calibrated plant: the best model found (thesis-6.4.5-esn) gives "
+    "alpha 97.6 %, beta 82.6 % (NMSE_s 0.75 %); this error structure needs NMSE_s ~0.12 % (docs/ablations.md)",
+)
+def test_645_best_model_reaches_the_thesis_targets(control_645_esn):
+    _, s = control_645_esn
+    assert s["model"]["alpha"]["mean"] >= 99.5
+    assert s["model"]["beta"]["mean"] >= 90.0
 
 
 @pytest.mark.slow
