@@ -183,7 +183,7 @@ def test_delay_line_over_chunks_equals_the_delayed_states_of_one_run():
         LorenzNetParams(readout_delays=(10, 0))
 
 
-def test_delayed_readout_is_streamed_exactly_and_gives_the_readout_memory():
+def test_delayed_readout_is_streamed_exactly_and_gives_the_readout_memory(tmp_path):
     """On the Rossler task (output 10 time units ahead) states 1 - 3 time units old lower the error of the
     same random networks (no annealing); the fitted model's streamed prediction equals the readout of the
     whole run's delayed states."""
@@ -198,6 +198,9 @@ def test_delayed_readout_is_streamed_exactly_and_gives_the_readout_memory():
     X, _ = simulate_network(f.element_params_, f.C_, f.B_, u, f.dt_, f.params.substeps)
     expected = delayed(X.reshape(900, -1), (10, 20, 30)) @ f.W_.T + f.w0_
     np.testing.assert_allclose(f.simulate(u).y, expected, rtol=1e-10, atol=1e-10)
+    loaded = dynmodel.load(dynmodel.save(lagged, tmp_path / "delays.h5"))
+    assert loaded.family.params.readout_delays == (10, 20, 30)
+    np.testing.assert_array_equal(loaded.predict(u[:, 0]), lagged.predict(u[:, 0]))
 
 
 def test_a_validation_split_is_required():
