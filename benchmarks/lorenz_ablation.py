@@ -147,6 +147,12 @@ ROWS = [
         "readout_delays [5, 10, ..., 50] (11 x 97 features)",
         {"readout_delays": list(range(5, 51, 5))},
     ),
+    Row(
+        "delays-5-to-50-final",
+        "readout",
+        "readout_delays [5, 10, ..., 50], annealed on the current states (anneal_delays: false)",
+        {"readout_delays": list(range(5, 51, 5)), "anneal_delays": False},
+    ),
     # capacity and task (evidence, not the thesis protocol)
     Row("size-64", "capacity", "64 elements (feed-forward: 60 extra links)", {"size": 64, "extra_links": 60}),
     Row("size-128", "capacity", "128 elements (feed-forward: 120 extra links)", {"size": 128, "extra_links": 120}),

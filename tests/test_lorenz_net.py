@@ -203,6 +203,22 @@ def test_delayed_readout_is_streamed_exactly_and_gives_the_readout_memory(tmp_pa
     np.testing.assert_array_equal(loaded.predict(u[:, 0]), lagged.predict(u[:, 0]))
 
 
+def test_anneal_delays_false_anneals_the_thesis_readout_and_adds_the_delays_after():
+    """anneal_delays: false scores the candidates with the current states only: the annealed network is the
+    one without delays (same seed), and only the final readout sees the delayed states."""
+    plain = engine.fit(make_spec(_raw(steps=15)))
+    after = engine.fit(make_spec(_raw(steps=15, readout_delays=[10, 20], anneal_delays=False)))
+    during = engine.fit(make_spec(_raw(steps=15, readout_delays=[10, 20])))
+    np.testing.assert_array_equal(after.family.element_params_, plain.family.element_params_)
+    np.testing.assert_array_equal(after.family.C_, plain.family.C_)
+    assert after.family.W_.shape == during.family.W_.shape == (1, 3 * 3 * 12)
+    assert after.family.search_ == plain.family.search_
+    assert (
+        during.family.search_["restarts"][0]["validation_nmse"]
+        != plain.family.search_["restarts"][0]["validation_nmse"]
+    )
+
+
 def test_a_validation_split_is_required():
     raw = _raw()
     raw["data"]["split"] = {"train": 1.0}

@@ -50,6 +50,7 @@ class LorenzNet(Family):
         alpha_range: tuple[float, float] = (0.8, 1.2),
         input_scale: float = 1.0,
         readout_delays: tuple[int, ...] = (),
+        anneal_delays: bool = True,
         substeps: int = 4,
         time_scale: float | None = None,
         restarts: int = 1,

@@ -52,6 +52,12 @@ class LorenzNetParams(FamilyParams):
         "Rossler drive within about one time unit; states 1 - 3 time units old (10, 20, 30 samples at 0.1) "
         "give the readout the memory a 10-time-unit horizon needs (docs/ablations.md)",
     )
+    anneal_delays: bool = Field(
+        True,
+        description="the annealing scores candidates with the delayed readout (true) or with the readout of "
+        "the current states only (false: the elements are optimized as in the thesis and the delays enter "
+        "the final readout; much faster with many delays)",
+    )
     substeps: int = Field(4, ge=1, description="RK4 steps per sampling interval")
     time_scale: Optional[float] = Field(
         None,

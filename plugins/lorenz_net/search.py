@@ -136,6 +136,7 @@ class Evaluator:
                 "part (e.g. {train: 0.67, validation: 0.33})"
             )
         self.data, self.p, self.dt = data, p, dt
+        self.delays = p.readout_delays if p.anneal_delays else ()  # the readout the candidates are scored with
         self.Yv = data.targets("validation")
         self.var_v = np.maximum(np.var(self.Yv, axis=0), 1e-300)
         self.cached: LorenzState | None = None
@@ -171,7 +172,7 @@ class Evaluator:
                 self.finite[k, todo] = np.isfinite(self.states[k][:, todo, :]).all(axis=(0, 2))
         self.element_integrations += len(todo) * len(self.data.series)
         self.cached = s
-        return [delayed(X.reshape(X.shape[0], -1), self.p.readout_delays) for X in self.states]
+        return [delayed(X.reshape(X.shape[0], -1), self.delays) for X in self.states]
 
     def readout(self, F: list[np.ndarray]) -> regression.LinearFit:
         """Least-squares readout on the training rows from the square-root moments of the states (as
@@ -206,7 +207,7 @@ class Evaluator:
         """The same objective without the cache: the whole network integrated chunk by chunk, the
         readout from the training moments, the error from the validation moments."""
         m = readout_moments(
-            s.params, s.C, s.B, self.dt, self.p.substeps, self.data, ("train", "validation"), self.p.readout_delays
+            s.params, s.C, s.B, self.dt, self.p.substeps, self.data, ("train", "validation"), self.delays
         )
         self.element_integrations += s.params.shape[0] * len(self.data.series)
         if not (m["train"].finite and m["validation"].finite):
