@@ -244,9 +244,8 @@ def thesis_4_4_2():
 
 @pytest.fixture(scope="module")
 def thesis_4_4_2_delays():
-    """Test NMSE (%) of the specs with delayed states in the readout over the family seeds 0 - 2
-    (about 6 minutes per fit on a loaded 2-core machine)."""
-    return {s: _spec_runs(f"thesis-4.4.2-{s}-delays", range(3)) for s in ("parallel", "feed-forward")}
+    """Test NMSE (%) of the specs with delayed states in the readout over the family seeds 0 - 4."""
+    return {s: _spec_runs(f"thesis-4.4.2-{s}-delays", range(5)) for s in ("parallel", "feed-forward")}
 
 
 @pytest.mark.slow
@@ -261,23 +260,28 @@ def test_thesis_4_4_2_feed_forward_beats_parallel(thesis_4_4_2):
 
 @pytest.mark.slow
 def test_thesis_4_4_2_delayed_states_in_the_readout_cut_the_error(thesis_4_4_2, thesis_4_4_2_delays):
-    """The ablation's finding: the readout lacks memory of the drive. States 1 - 3 time units old
-    (readout_delays [10, 20, 30], annealed on that readout) cut the test NMSE about threefold parallel and
-    fivefold feed-forward (docs/ablations.md: parallel 4.8 ± 0.2 %, feed-forward 1.2 ± 0.5 % over seeds 0 - 4)."""
+    """The ablation's finding: the readout lacks memory of the drive. The same annealed networks read out
+    over their states every 0.5 time units up to 5 back (readout_delays 5 ... 50) reach parallel
+    2.38 ± 0.27 %, feed-forward 0.77 ± 0.43 % (seeds 0 - 4; thesis readout 15.9 / 9.2 %)."""
     plain, lagged = thesis_4_4_2, thesis_4_4_2_delays
     for strategy in ("parallel", "feed-forward"):
-        assert lagged[strategy].max() < 0.5 * plain[strategy].min(), strategy
-    assert lagged["parallel"].mean() < 7.0 and lagged["feed-forward"].mean() < 2.5
-    assert lagged["feed-forward"].mean() < lagged["parallel"].mean()
+        assert lagged[strategy].max() < 0.25 * plain[strategy].min(), strategy
+    assert lagged["parallel"].mean() < 2.7 and lagged["feed-forward"].mean() < lagged["parallel"].mean()
+
+
+@pytest.mark.slow
+def test_thesis_4_4_2_feed_forward_reaches_the_thesis_figure(thesis_4_4_2_delays):
+    """Thesis 4.4.2, feed-forward: mean test NMSE over runs 0.9 %; measured 0.77 ± 0.43 % over seeds 0 - 4
+    with delayed states in the readout (not the thesis's readout; seeds 0 and 1 alone are above: 1.3, 1.2 %)."""
+    assert thesis_4_4_2_delays["feed-forward"].mean() <= 0.9
 
 
 @pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
-    reason="4.4.2 targets not reached (docs/ablations.md): the best 32-element networks, with delayed states "
-    "in the readout, measured parallel 4.8 ± 0.2 %, feed-forward 1.2 ± 0.5 % over seeds 0 - 4; with the thesis's readout parallel 15.9 %, feed-forward 9.2 %",
+    reason="4.4.2 parallel target (1.9 %) not reached (docs/ablations.md): the best 32-element parallel networks, "
+    "with delayed states in the readout, measured 2.38 ± 0.27 % over 5 seeds (thesis readout: 15.9 %)",
 )
-def test_thesis_4_4_2_reaches_the_thesis_figures(thesis_4_4_2_delays):
-    """Thesis 4.4.2, mean test NMSE over runs: parallel 1.9 %, feed-forward 0.9 % (on the best specs found)."""
+def test_thesis_4_4_2_parallel_reaches_the_thesis_figure(thesis_4_4_2_delays):
+    """Thesis 4.4.2, parallel: mean test NMSE over runs 1.9 % (on the best spec found)."""
     assert thesis_4_4_2_delays["parallel"].mean() <= 1.9
-    assert thesis_4_4_2_delays["feed-forward"].mean() <= 0.9
