@@ -129,6 +129,20 @@ ROWS = [
         lags=tuple(range(0, 101, 10)),
     ),
     Row(
+        "readout-delayed-5-to-75",
+        "readout",
+        "states at t and every 0.5 time units up to t-7.5 (16 x 97 features), least squares",
+        readout="lstsq",
+        lags=tuple(range(0, 76, 5)),
+    ),
+    Row(
+        "readout-delayed-3-to-60",
+        "readout",
+        "states at t and every 0.3 time units up to t-6 (21 x 97 features), least squares",
+        readout="lstsq",
+        lags=tuple(range(0, 61, 3)),
+    ),
+    Row(
         "readout-delayed-5-to-50-ridge",
         "readout",
         "states at t and every 0.5 time units up to t-5, ridge with the penalty chosen on validation",
