@@ -261,12 +261,12 @@ def test_thesis_4_4_2_feed_forward_beats_parallel(thesis_4_4_2):
 @pytest.mark.slow
 def test_thesis_4_4_2_delayed_states_in_the_readout_cut_the_error(thesis_4_4_2, thesis_4_4_2_delays):
     """The ablation's finding: the readout lacks memory of the drive. The same annealed networks read out
-    over their states every 0.5 time units up to 5 back (readout_delays 5 ... 50) reach parallel
-    2.38 ± 0.27 %, feed-forward 0.77 ± 0.43 % (seeds 0 - 4; thesis readout 15.9 / 9.2 %)."""
+    over their states every 0.3 (parallel) / 0.5 (feed-forward) time units up to 6 / 5 back reach parallel
+    1.68 ± 0.20 %, feed-forward 0.77 ± 0.43 % (seeds 0 - 4; thesis readout 15.9 / 9.2 %)."""
     plain, lagged = thesis_4_4_2, thesis_4_4_2_delays
     for strategy in ("parallel", "feed-forward"):
         assert lagged[strategy].max() < 0.25 * plain[strategy].min(), strategy
-    assert lagged["parallel"].mean() < 2.7 and lagged["feed-forward"].mean() < lagged["parallel"].mean()
+    assert lagged["parallel"].mean() < 2.0 and lagged["feed-forward"].mean() < lagged["parallel"].mean()
 
 
 @pytest.mark.slow
@@ -277,11 +277,7 @@ def test_thesis_4_4_2_feed_forward_reaches_the_thesis_figure(thesis_4_4_2_delays
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="4.4.2 parallel target (1.9 %) not reached (docs/ablations.md): the best 32-element parallel networks, "
-    "with delayed states in the readout, measured 2.38 ± 0.27 % over 5 seeds (thesis readout: 15.9 %)",
-)
 def test_thesis_4_4_2_parallel_reaches_the_thesis_figure(thesis_4_4_2_delays):
-    """Thesis 4.4.2, parallel: mean test NMSE over runs 1.9 % (on the best spec found)."""
+    """Thesis 4.4.2, parallel: mean test NMSE over runs 1.9 %; measured 1.68 ± 0.20 % over seeds 0 - 4 with
+    the states every 0.3 time units up to 6 back in the readout (not the thesis's readout; seed 1 alone: 1.99 %)."""
     assert thesis_4_4_2_delays["parallel"].mean() <= 1.9
