@@ -56,20 +56,80 @@ def test_sliding_networks_beat_the_narx_model(tmp_path):
 
 
 # ----------------------------------------------------------------------------- 6.4.5 control
-@pytest.fixture(scope="module")
-def control_645(tmp_path_factory):
-    d = tmp_path_factory.mktemp("c645")
-    model = fitted("thesis-6.4.5-rnn", d)
+def _p_control_and_perfect(params: dict, seed: int) -> dict:
+    """One 100 s tracking run as in 6.4.4: P-control to 50 s, then the perfect model's feed-forward."""
+    plant, _ = ctl.make_plant("friction-plant", params)
+    n, switch, skip = 100_000, 50_000, 20_000
+    task = plant.tracking_task(n, np.random.default_rng(seed))
+    run = task.start(switch, np.random.default_rng([seed, 1]))
+    pos, _ = run.resume(task.perfect_feedforward())
+    e = np.concatenate([run.position, pos]) - task.reference
+    out = ctl.criteria(task.reference, e, switch, skip)
+    out["max_over_rms"] = float(np.max(np.abs(e[skip:switch])) / np.sqrt(np.mean(e[skip:switch] ** 2)))
+    return out
+
+
+@pytest.mark.slow
+def test_645_default_plant_reproduces_the_published_p_control_and_perfect_model_figures():
+    """Friction system 1 as published (6.4.5): NMSE_P 0.897 %, MAX_P 0.280 (a P-error whose peaks are
+    2.95 times its rms), perfect model alpha 99.992 %, beta 99.65 %. The plant's reference is
+    calibrated on these figures (the thesis does not give its signal generator); the previous one
+    (std 5 cm over 0.05 - 0.5 Hz) gave MAX_P 0.14, a peak ratio 1.55 and a perfect beta of 94.6 %."""
+    runs = [_p_control_and_perfect({}, seed) for seed in range(5)]
+    mean = {k: float(np.mean([r[k] for r in runs])) for k in runs[0]}
+    assert 0.75 < mean["nmse_p"] < 1.0
+    assert 0.24 < mean["max_p"] < 0.32
+    assert 2.5 < mean["max_over_rms"] < 3.5
+    assert mean["alpha"] > 99.99 and mean["beta"] > 99.0
+    previous = [_p_control_and_perfect({"reference": {"std": 0.05, "band": [0.05, 0.5]}}, seed) for seed in range(3)]
+    assert np.mean([r["max_p"] for r in previous]) < 0.18 and np.mean([r["beta"] for r in previous]) < 97.0
+
+
+def _control(name: str, d):
+    model = fitted(name, d)
     data = model.spec["data"]
     plant, _ = ctl.make_plant(data["generator"], data["params"])
     report = ctl.run(model, plant, ctl.Settings(realizations=5))
     return model, report.summary()
 
 
+@pytest.fixture(scope="module")
+def control_645(tmp_path_factory):
+    return _control("thesis-6.4.5-rnn", tmp_path_factory.mktemp("c645"))
+
+
+@pytest.fixture(scope="module")
+def control_645_esn(tmp_path_factory):
+    return _control("thesis-6.4.5-esn", tmp_path_factory.mktemp("c645esn"))
+
+
+@pytest.mark.slow
+def test_645_esn_with_wide_input_weights_is_the_best_feedforward(control_645_esn):
+    """The best shipped model of the ablation on the calibrated plant (docs/ablations.md; seeds 0 - 4: NMSE_s
+    0.75 %, alpha 97.8 ± 0.7 %, beta 83.2 ± 1.9 %): input weights of std 30 put the turnover of the friction after a reversal
+    into the nonlinear part of tanh (std 3: NMSE_s 1.5 %, alpha 96.0 %, beta 74 %)."""
+    model, s = control_645_esn
+    assert model.metrics["test"]["nmse"] < 1.0
+    assert s["model"]["alpha"]["mean"] > 97.0 and s["model"]["beta"]["mean"] > 79.0
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="6.4.5 targets not reached on the calibrated plant: the best shipped model (thesis-6.4.5-esn) gives "
+    "alpha 97.8 %, beta 83.2 % (NMSE_s 0.75 %, 5 seeds); its error structure needs NMSE_s ~0.12 % (docs/ablations.md)",
+)
+def test_645_best_model_reaches_the_thesis_targets(control_645_esn):
+    _, s = control_645_esn
+    assert s["model"]["alpha"]["mean"] >= 99.5
+    assert s["model"]["beta"]["mean"] >= 90.0
+
+
 @pytest.mark.slow
 def test_645_feedforward_reduces_the_tracking_error(control_645):
-    """What the shipped model reaches (README: alpha ~95 %, beta ~57 %, NMSE_s ~1.9 %), and the
-    perfect model's limits (thesis: alpha 99.992 %, beta 99.65 %)."""
+    """What the shipped annealed network reaches on the calibrated plant (docs/ablations.md, seed 0: NMSE_s
+    1.66 %, alpha 98.2 %, beta 84.8 %; seeds 0 - 2: alpha 95.2 ± 3.6 %, beta 74 ± 11 %), and the perfect
+    model's limits (thesis: alpha 99.992 %, beta 99.65 %)."""
     model, s = control_645
     assert model.metrics["test"]["nmse"] < 5.0
     assert s["model"]["nmse_ff"]["mean"] < 0.05 * s["model"]["nmse_p"]["mean"]
@@ -80,8 +140,8 @@ def test_645_feedforward_reduces_the_tracking_error(control_645):
 @pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
-    reason="6.4.5 targets not reached: the shipped annealed network gives "
-    "alpha ~95 %, beta ~57 % on this plant (README, Results)",
+    reason="6.4.5 targets not reached: the shipped annealed network gives alpha 98.2 %, beta 84.8 % (seed 0; "
+    "seeds 0 - 2: 95.2 / 74 %) on the calibrated plant (docs/ablations.md)",
 )
 def test_645_reaches_the_thesis_targets(control_645):
     _, s = control_645

@@ -13,6 +13,7 @@ from dynmodel.spec import load_spec
 from dynmodel_plugins.lorenz_net.elements import descendants, integrate_element, simulate_network, step_elements
 from dynmodel_plugins.lorenz_net.params import LorenzNetParams
 from dynmodel_plugins.lorenz_net.search import initial_state, make_moves
+from dynmodel_plugins.lorenz_net.streaming import DelayLine, delayed
 
 
 def test_element_integration_matches_an_adaptive_solver():
@@ -74,6 +75,23 @@ def test_feed_forward_structure_follows_the_thesis():
     assert not par.C.any() and np.all(par.B == 1)
     lo = np.array([0, 0, 0, 0.8])
     assert np.all(par.params >= np.maximum(lo, 1e-3)) and np.all(par.params[:, 3] <= 1.2)
+
+
+@pytest.mark.parametrize("strategy", ["parallel", "feed-forward"])
+def test_input_scale_is_the_gain_of_the_drive_and_changes_nothing_else(strategy):
+    """input_scale g: the input-driven elements see x1' = alpha sigma (g u - x1); the random draws (element
+    parameters, couplings) are those of g = 1, and driving with g u equals scaling the input by g."""
+    base = LorenzNetParams(size=12, strategy=strategy, layers=3, extra_links=6)
+    scaled = base.model_copy(update={"input_scale": 1.5})
+    a, b = (initial_state(p, 1, np.random.default_rng(7)) for p in (base, scaled))
+    np.testing.assert_array_equal(a.params, b.params)
+    np.testing.assert_array_equal(a.C, b.C)
+    np.testing.assert_array_equal(b.B, 1.5 * a.B)
+    assert np.all(b.B[b.layer == 0] == 1.5) and np.all(b.B[b.layer > 0] == 0)
+    u = np.random.default_rng(8).uniform(0.2, 6, (300, 1))
+    Xa, _ = simulate_network(a.params, a.C, a.B, 1.5 * u, 0.1, 2)
+    Xb, _ = simulate_network(b.params, b.C, b.B, u, 0.1, 2)
+    np.testing.assert_allclose(Xb, Xa, rtol=1e-12, atol=1e-12)
 
 
 def test_moves_keep_the_network_loop_free_and_parameters_positive():
@@ -147,6 +165,60 @@ def test_trained_networks_pass_the_reliability_check():
         assert max(e.largest for e in report.exponents.values()) < 0  # every drive contracts
 
 
+def test_delay_line_over_chunks_equals_the_delayed_states_of_one_run():
+    """Readout rows [xi_t, xi_(t-d), ...] built chunk by chunk (streamed fit and prediction) equal those of
+    the whole recording, with the network at rest (zeros) before the first sample."""
+    X = np.random.default_rng(3).standard_normal((700, 5))
+    delays = (1, 10, 37)
+    whole = delayed(X, delays)
+    assert whole.shape == (700, 20)
+    np.testing.assert_array_equal(whole[:, :5], X)
+    np.testing.assert_array_equal(whole[37:, 15:], X[:-37])
+    assert np.all(whole[:37, 15:] == 0) and np.all(whole[:10, 10:15] == 0)
+    line = DelayLine(5, delays)
+    chunks = np.vstack([line(X[a:b]) for a, b in [(0, 3), (3, 40), (40, 41), (41, 500), (500, 700)]])
+    np.testing.assert_array_equal(chunks, whole)
+    np.testing.assert_array_equal(delayed(X, ()), X)
+    with pytest.raises(ValueError, match="readout_delays"):
+        LorenzNetParams(readout_delays=(10, 0))
+
+
+def test_delayed_readout_is_streamed_exactly_and_gives_the_readout_memory(tmp_path):
+    """On the Rossler task (output 10 time units ahead) states 1 - 3 time units old lower the error of the
+    same random networks (no annealing); the fitted model's streamed prediction equals the readout of the
+    whole run's delayed states."""
+    plain = engine.fit(make_spec(_raw(strategy="parallel", steps=0)))
+    lagged = engine.fit(make_spec(_raw(strategy="parallel", steps=0, readout_delays=[10, 20, 30])))
+    np.testing.assert_array_equal(plain.family.element_params_, lagged.family.element_params_)
+    assert lagged.family.W_.shape == (1, 4 * 3 * 12)
+    nm = plain.metrics["validation"]["nmse"], lagged.metrics["validation"]["nmse"]
+    assert nm[1] < 0.8 * nm[0], nm
+    f = lagged.family
+    u = np.random.default_rng(9).uniform(0.3, 8, (900, 1))
+    X, _ = simulate_network(f.element_params_, f.C_, f.B_, u, f.dt_, f.params.substeps)
+    expected = delayed(X.reshape(900, -1), (10, 20, 30)) @ f.W_.T + f.w0_
+    np.testing.assert_allclose(f.simulate(u).y, expected, rtol=1e-10, atol=1e-10)
+    loaded = dynmodel.load(dynmodel.save(lagged, tmp_path / "delays.h5"))
+    assert loaded.family.params.readout_delays == (10, 20, 30)
+    np.testing.assert_array_equal(loaded.predict(u[:, 0]), lagged.predict(u[:, 0]))
+
+
+def test_anneal_delays_false_anneals_the_thesis_readout_and_adds_the_delays_after():
+    """anneal_delays: false scores the candidates with the current states only: the annealed network is the
+    one without delays (same seed), and only the final readout sees the delayed states."""
+    plain = engine.fit(make_spec(_raw(steps=15)))
+    after = engine.fit(make_spec(_raw(steps=15, readout_delays=[10, 20], anneal_delays=False)))
+    during = engine.fit(make_spec(_raw(steps=15, readout_delays=[10, 20])))
+    np.testing.assert_array_equal(after.family.element_params_, plain.family.element_params_)
+    np.testing.assert_array_equal(after.family.C_, plain.family.C_)
+    assert after.family.W_.shape == during.family.W_.shape == (1, 3 * 3 * 12)
+    assert after.family.search_ == plain.family.search_
+    assert (
+        during.family.search_["restarts"][0]["validation_nmse"]
+        != plain.family.search_["restarts"][0]["validation_nmse"]
+    )
+
+
 def test_a_validation_split_is_required():
     raw = _raw()
     raw["data"]["split"] = {"train": 1.0}
@@ -154,19 +226,58 @@ def test_a_validation_split_is_required():
         engine.fit(make_spec(raw))
 
 
+def _spec_runs(name: str, seeds: range) -> np.ndarray:
+    values = []
+    for seed in seeds:
+        spec = load_spec(ROOT / f"specs/{name}.yaml")
+        spec.seed = seed
+        values.append(engine.fit(spec).metrics["test"]["nmse"])
+    print(f"\n{name}: mean {np.mean(values):.3f} std {np.std(values):.3f}")
+    return np.array(values)
+
+
+@pytest.fixture(scope="module")
+def thesis_4_4_2():
+    """Test NMSE (%) of both thesis specs (the thesis's readout) over the family seeds 0 - 4."""
+    return {s: _spec_runs(f"thesis-4.4.2-{s}", range(5)) for s in ("parallel", "feed-forward")}
+
+
+@pytest.fixture(scope="module")
+def thesis_4_4_2_delays():
+    """Test NMSE (%) of the specs with delayed states in the readout over the family seeds 0 - 4."""
+    return {s: _spec_runs(f"thesis-4.4.2-{s}-delays", range(5)) for s in ("parallel", "feed-forward")}
+
+
 @pytest.mark.slow
-def test_thesis_4_4_2_feed_forward_beats_parallel():
-    """Both strategies over 5 runs on the rossler-cross task (README, 20 runs: parallel 16.1 %,
-    feed-forward about 10 %; the thesis's 1.9 % / 0.9 % are not reached)."""
-    results = {}
-    for strategy in ("parallel", "feed-forward"):
-        values = []
-        for seed in range(5):
-            spec = load_spec(ROOT / f"specs/thesis-4.4.2-{strategy}.yaml")
-            spec.seed = seed
-            values.append(engine.fit(spec).metrics["test"]["nmse"])
-        results[strategy] = np.array(values)
-        print(f"\n{strategy}: mean {np.mean(values):.3f} std {np.std(values):.3f}")
+def test_thesis_4_4_2_feed_forward_beats_parallel(thesis_4_4_2):
+    """Both strategies over 5 runs on the rossler-cross task with the thesis's readout (docs/ablations.md,
+    5 runs: parallel 15.9 ± 0.5 %, feed-forward 9.2 ± 1.3 %; the thesis's 1.9 % / 0.9 % are not reached)."""
+    results = thesis_4_4_2
     assert results["feed-forward"].mean() < results["parallel"].mean()
     assert np.median(results["feed-forward"]) < np.median(results["parallel"])
     assert results["parallel"].mean() < 18.0 and results["feed-forward"].mean() < 12.0
+
+
+@pytest.mark.slow
+def test_thesis_4_4_2_delayed_states_in_the_readout_cut_the_error(thesis_4_4_2, thesis_4_4_2_delays):
+    """The ablation's finding: the readout lacks memory of the drive. The same annealed networks read out
+    over their states every 0.3 (parallel) / 0.5 (feed-forward) time units up to 6 / 5 back reach parallel
+    1.68 ± 0.20 %, feed-forward 0.77 ± 0.43 % (seeds 0 - 4; thesis readout 15.9 / 9.2 %)."""
+    plain, lagged = thesis_4_4_2, thesis_4_4_2_delays
+    for strategy in ("parallel", "feed-forward"):
+        assert lagged[strategy].max() < 0.25 * plain[strategy].min(), strategy
+    assert lagged["parallel"].mean() < 2.0 and lagged["feed-forward"].mean() < lagged["parallel"].mean()
+
+
+@pytest.mark.slow
+def test_thesis_4_4_2_feed_forward_reaches_the_thesis_figure(thesis_4_4_2_delays):
+    """Thesis 4.4.2, feed-forward: mean test NMSE over runs 0.9 %; measured 0.77 ± 0.43 % over seeds 0 - 4
+    with delayed states in the readout (not the thesis's readout; seeds 0 and 1 alone are above: 1.3, 1.2 %)."""
+    assert thesis_4_4_2_delays["feed-forward"].mean() <= 0.9
+
+
+@pytest.mark.slow
+def test_thesis_4_4_2_parallel_reaches_the_thesis_figure(thesis_4_4_2_delays):
+    """Thesis 4.4.2, parallel: mean test NMSE over runs 1.9 %; measured 1.68 ± 0.20 % over seeds 0 - 4 with
+    the states every 0.3 time units up to 6 back in the readout (not the thesis's readout; seed 1 alone: 1.99 %)."""
+    assert thesis_4_4_2_delays["parallel"].mean() <= 1.9

@@ -35,7 +35,12 @@ def _default_law() -> GmsLaw:
 
 
 def _default_reference() -> TrajectoryParams:
-    return TrajectoryParams(kind="random", std=0.05, band=(0.05, 0.5))
+    """The reference of friction system 1, calibrated on the thesis's published P-control and perfect-model
+    figures (6.4.5: NMSE_P 0.897 %, MAX_P 0.280, perfect alpha 99.992 %, beta 99.65 %), which the thesis's
+    signal generator left unspecified: std 6 cm over 0.05 - 1.2 Hz gives NMSE_P 0.85 %, MAX_P 0.28,
+    alpha 99.999 %, beta 99.5 % (std 5 cm over 0.05 - 0.5 Hz: MAX_P 0.14, beta 94.6 %); see
+    benchmarks/friction_ablation.py --plant."""
+    return TrajectoryParams(kind="random", std=0.06, band=(0.05, 1.2))
 
 
 class PlantParams(GeneratorParams):

@@ -48,6 +48,9 @@ class LorenzNet(Family):
         r_range: tuple[float, float] = (0.0, 40.0),
         b_range: tuple[float, float] = (0.0, 10.0),
         alpha_range: tuple[float, float] = (0.8, 1.2),
+        input_scale: float = 1.0,
+        readout_delays: tuple[int, ...] = (),
+        anneal_delays: bool = True,
         substeps: int = 4,
         time_scale: float | None = None,
         restarts: int = 1,
@@ -126,8 +129,10 @@ class LorenzNet(Family):
                 "every Lorenz network diverged in the RK4 integration; raise `substeps` or lower the parameter ranges"
             )
         self.element_params_, self.C_, self.B_, self.layer_ = state.params, state.C, state.B, state.layer
-        progress("readout", None, "least squares on all 3M states")
-        moments = readout_moments(self.element_params_, self.C_, self.B_, self.dt_, p.substeps, data)
+        progress("readout", None, "least squares on all 3M states" + (" and their delays" if p.readout_delays else ""))
+        moments = readout_moments(
+            self.element_params_, self.C_, self.B_, self.dt_, p.substeps, data, delays=p.readout_delays
+        )
         fit = readout.lstsq(moments["train"])
         self.W_, self.w0_ = np.ascontiguousarray(fit.coef.T), fit.intercept
         return self
@@ -137,7 +142,17 @@ class LorenzNet(Family):
     ) -> Simulation:
         self.check_fitted()
         u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)
-        y = outputs(self.element_params_, self.C_, self.B_, self.dt_, self.params.substeps, u, self.W_, self.w0_)
+        y = outputs(
+            self.element_params_,
+            self.C_,
+            self.B_,
+            self.dt_,
+            self.params.substeps,
+            u,
+            self.W_,
+            self.w0_,
+            self.params.readout_delays,
+        )
         bad = np.flatnonzero(~np.isfinite(y).all(axis=1))
         return Simulation(y, int(bad[0]) if bad.size else None)
 

@@ -39,6 +39,25 @@ class LorenzNetParams(FamilyParams):
     alpha_range: tuple[float, float] = Field(
         (0.8, 1.2), description="initial alpha ~ U[low, high] (thesis: U[0.8, 1.2])"
     )
+    input_scale: float = Field(
+        1.0,
+        gt=0,
+        description="gain of the external input into the elements it drives (b_i of eq. 4.59; 1: the "
+        "drive u of eq. 4.52 as given). On the thesis's Rossler task 1.5 - 2 is better (README, ablation)",
+    )
+    readout_delays: tuple[int, ...] = Field(
+        (),
+        description="delays (samples) of the element states added to the readout: y_t = W [xi_t, "
+        "xi_(t-d1), ...] (empty: the thesis's readout of the 3M current states). The elements forget the "
+        "Rossler drive within about one time unit; states 1 - 3 time units old (10, 20, 30 samples at 0.1) "
+        "give the readout the memory a 10-time-unit horizon needs (docs/ablations.md)",
+    )
+    anneal_delays: bool = Field(
+        True,
+        description="the annealing scores candidates with the delayed readout (true) or with the readout of "
+        "the current states only (false: the elements are optimized as in the thesis and the delays enter "
+        "the final readout; much faster with many delays)",
+    )
     substeps: int = Field(4, ge=1, description="RK4 steps per sampling interval")
     time_scale: Optional[float] = Field(
         None,
@@ -57,6 +76,8 @@ class LorenzNetParams(FamilyParams):
             lo, hi = getattr(self, name)
             if not 0 <= lo <= hi:
                 raise ValueError(f"{name} must satisfy 0 <= low <= high")
+        if any(d <= 0 for d in self.readout_delays) or len(set(self.readout_delays)) < len(self.readout_delays):
+            raise ValueError(f"readout_delays must be distinct positive sample counts, got {list(self.readout_delays)}")
         if self.strategy == "feed-forward" and self.layers > self.size:
             raise ValueError(f"{self.layers} layers need at least as many elements (size {self.size})")
         return self

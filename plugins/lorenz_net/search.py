@@ -18,7 +18,7 @@ from dynmodel.moments import Moments, chunk_rows, split_blocks
 
 from .elements import descendants, simulate_network
 from .params import LorenzNetParams
-from .streaming import readout_moments
+from .streaming import delayed, readout_moments
 
 WEIGHT_LOW, WEIGHT_HIGH = 0.5, 1.5  # couplings from [-1.5, -0.5] U [0.5, 1.5] (thesis 4.4.2)
 #: trajectories cached by one evaluator (one restart) at most; above, every candidate is integrated
@@ -62,7 +62,7 @@ def initial_state(p: LorenzNetParams, n_inputs: int, rng: np.random.Generator) -
             C[free[k]] = _coupling(rng)
     B = np.zeros((m, n_inputs))
     first = layer == 0
-    B[first] = (
+    B[first] = p.input_scale * (
         1.0 if n_inputs == 1 else np.array([[_coupling(rng) for _ in range(n_inputs)] for _ in range(int(first.sum()))])
     )
     return LorenzState(params, C, B, layer)
@@ -136,6 +136,7 @@ class Evaluator:
                 "part (e.g. {train: 0.67, validation: 0.33})"
             )
         self.data, self.p, self.dt = data, p, dt
+        self.delays = p.readout_delays if p.anneal_delays else ()  # the readout the candidates are scored with
         self.Yv = data.targets("validation")
         self.var_v = np.maximum(np.var(self.Yv, axis=0), 1e-300)
         self.cached: LorenzState | None = None
@@ -171,7 +172,7 @@ class Evaluator:
                 self.finite[k, todo] = np.isfinite(self.states[k][:, todo, :]).all(axis=(0, 2))
         self.element_integrations += len(todo) * len(self.data.series)
         self.cached = s
-        return [X.reshape(X.shape[0], -1) for X in self.states]
+        return [delayed(X.reshape(X.shape[0], -1), self.delays) for X in self.states]
 
     def readout(self, F: list[np.ndarray]) -> regression.LinearFit:
         """Least-squares readout on the training rows from the square-root moments of the states (as
@@ -205,7 +206,9 @@ class Evaluator:
     def _streamed_score(self, s: LorenzState) -> float:
         """The same objective without the cache: the whole network integrated chunk by chunk, the
         readout from the training moments, the error from the validation moments."""
-        m = readout_moments(s.params, s.C, s.B, self.dt, self.p.substeps, self.data, ("train", "validation"))
+        m = readout_moments(
+            s.params, s.C, s.B, self.dt, self.p.substeps, self.data, ("train", "validation"), self.delays
+        )
         self.element_integrations += s.params.shape[0] * len(self.data.series)
         if not (m["train"].finite and m["validation"].finite):
             return np.inf

@@ -39,20 +39,63 @@ class ChunkedNetwork:
         return X
 
 
+class DelayLine:
+    """Readout rows ``[xi_t, xi_(t-d1), xi_(t-d2), ...]`` of consecutive chunks of states xi (n, K); the
+    states before the first sample are those of the network at rest (zeros)."""
+
+    def __init__(self, K: int, delays: tuple[int, ...]):
+        self.K, self.delays = K, tuple(int(d) for d in delays)
+        self.depth = max(self.delays, default=0)
+        self.history = np.zeros((self.depth, K))
+
+    @property
+    def width(self) -> int:
+        return self.K * (1 + len(self.delays))
+
+    def reset(self) -> None:
+        self.history[:] = 0.0
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        if not self.delays:
+            return X
+        n, D = X.shape[0], self.depth
+        H = np.vstack([self.history, X])
+        F = np.empty((n, self.width))
+        F[:, : self.K] = X
+        for j, d in enumerate(self.delays, start=1):
+            F[:, j * self.K : (j + 1) * self.K] = H[D - d : D - d + n]
+        self.history[:] = H[len(H) - D :]
+        return F
+
+
+def delayed(X: np.ndarray, delays: tuple[int, ...]) -> np.ndarray:
+    """Readout rows of one whole recording's states X (n, K) (see :class:`DelayLine`)."""
+    return DelayLine(X.shape[1], delays)(X)
+
+
 def readout_moments(
-    params: np.ndarray, C: np.ndarray, B: np.ndarray, dt: float, substeps: int, data: TrainingData, splits=("train",)
+    params: np.ndarray,
+    C: np.ndarray,
+    B: np.ndarray,
+    dt: float,
+    substeps: int,
+    data: TrainingData,
+    splits=("train",),
+    delays: tuple[int, ...] = (),
 ) -> dict[str, Moments]:
-    """Moments of the readout rows (all 3M states, y) of ``splits``."""
+    """Moments of the readout rows (all 3M states and their ``delays``, y) of ``splits``."""
     K = 3 * params.shape[0]
-    rows = chunk_rows(K + data.n_outputs)
+    line = DelayLine(K, delays)
+    rows = chunk_rows(line.width + data.n_outputs)
     net = ChunkedNetwork(params, C, B, dt, substeps, rows)
 
     def produce(k: int, start: int, stop: int) -> np.ndarray:
         if start == 0:
             net.reset()
-        return net.run(data.series[k].u[start:stop]).reshape(stop - start, K)
+            line.reset()
+        return line(net.run(data.series[k].u[start:stop]).reshape(stop - start, K))
 
-    return accumulate(data, produce, K, splits, rows)
+    return accumulate(data, produce, line.width, splits, rows)
 
 
 def outputs(
@@ -64,13 +107,15 @@ def outputs(
     U: np.ndarray,
     W: np.ndarray,
     w0: np.ndarray,
+    delays: tuple[int, ...] = (),
 ) -> np.ndarray:
-    """Readout ``W xi_t + w0`` (n, n_outputs) of the network driven by U from rest."""
+    """Readout ``W [xi_t, xi_(t-d1), ...] + w0`` (n, n_outputs) of the network driven by U from rest."""
     K = 3 * params.shape[0]
-    rows = chunk_rows(K)
+    line = DelayLine(K, delays)
+    rows = chunk_rows(line.width)
     net = ChunkedNetwork(params, C, B, dt, substeps, min(rows, max(len(U), 1)))
     y = np.empty((len(U), W.shape[0]))
     for start in range(0, len(U), rows):
         stop = min(start + rows, len(U))
-        y[start:stop] = net.run(U[start:stop]).reshape(stop - start, K) @ W.T + w0
+        y[start:stop] = line(net.run(U[start:stop]).reshape(stop - start, K)) @ W.T + w0
     return y
