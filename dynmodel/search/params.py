@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal, Optional
+from typing import Any, Literal, Optional
 
 from pydantic import ConfigDict, Field, field_validator
 
@@ -78,10 +78,11 @@ def auto_model_spec():
 
     from ..spec import StrictModel
 
+    tag: Any = Literal["auto"]  # typed Any: the field's type, not an annotation to check
     return create_model(
         "ModelSpec_auto",
         __base__=StrictModel,
         __doc__="search candidate models of every family and keep the best on validation (docs/auto.md)",
-        family=(Literal["auto"], ...),
+        family=(tag, ...),
         params=(AutoParams, Field(default_factory=AutoParams)),
     )
