@@ -1,0 +1,78 @@
+"""family auto when the test input leaves the training range: validation inside the range cannot rank how the
+candidates extrapolate, so the choice is never left to a single full fit (dynmodel.search.run)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from conftest import narx, write_csv
+
+from dynmodel import engine
+from dynmodel.data import load_dataset
+from dynmodel.search import search_options
+from dynmodel.search.run import SURVIVORS
+from dynmodel.spec import validate_spec
+
+WINDOW = 20
+
+
+def _system(u: np.ndarray) -> np.ndarray:
+    """The narx-system of conftest.narx driven by ``u``."""
+    y = np.zeros(len(u))
+    for t in range(len(u)):
+        y1 = y[t - 1] if t >= 1 else 0.0
+        y2 = y[t - 2] if t >= 2 else 0.0
+        y[t] = 0.8 * y1 - 0.2 / (1 + abs(y2)) + u[t]
+    return y
+
+
+def _search(tmp_path: Path, test_gain: float) -> dict:
+    u, y = narx(3000, 11)
+    ut = test_gain * np.random.default_rng(12).standard_normal(800)
+    write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    write_csv(tmp_path / "test.csv", {"u": ut, "y": _system(ut)})
+    raw = {
+        "name": "auto-extrapolation",
+        "data": {
+            "path": "train.csv",
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 0.7, "validation": 0.3},
+            "test": {"path": "test.csv"},
+            "init_window": {"test": WINDOW},
+        },
+        "model": {"family": "auto", "params": {"budget": 2, "families": ["narx"]}},
+        "seed": 0,
+    }
+    spec = validate_spec(raw, "<test>", tmp_path)
+    with search_options(workers=1):
+        model, _ = engine.fit_dataset(spec, load_dataset(spec))
+    return model.search
+
+
+def _full(record: dict) -> int:
+    return sum(1 for c in record["candidates"] if "final" in c["levels"] and c["origin"] != "move")
+
+
+def _screened(record: dict) -> int:
+    """Candidates that passed the screening (a finite score inside the band)."""
+    return sum(
+        1
+        for c in record["candidates"]
+        if "screen" in c["levels"] and c["levels"]["screen"]["score"] is not None and c["levels"]["screen"]["band_ok"]
+    )
+
+
+def test_a_test_input_beyond_the_training_range_gets_several_full_fits(tmp_path):
+    inside, beyond = tmp_path / "inside", tmp_path / "beyond"
+    inside.mkdir()
+    beyond.mkdir()
+    small = _search(inside, 0.5)  # the test input stays inside the training range
+    wide = _search(beyond, 1.4)  # ... leaves it (by far more than 5 % of its width)
+    assert small["context"]["excursion"] <= 0.05 < wide["context"]["excursion"]
+    # this budget leaves a single full fit when the test input stays inside the range ...
+    assert _full(small) == 1
+    # ... and the best survivors are all fitted in full when it leaves it: the choice is made among them
+    assert _full(wide) == min(SURVIVORS, _screened(wide)) >= 2
+    assert any("leave the training range" in why for why in wide["cautious"])
