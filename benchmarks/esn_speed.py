@@ -83,7 +83,10 @@ def _net(m: int, mode: str = "external"):
     from dynmodel_plugins.esn.network import build_network
     from dynmodel_plugins.esn.params import EsnParams
 
-    return build_network(EsnParams(size=m, mode=mode), 1, 1, np.random.default_rng(0))
+    # the plain network of the docstring (5.3.2 elements, input 0.1), which the numpy loop also runs;
+    # since issue 14 the family's defaults are leaky elements with input to half of them
+    params = EsnParams(size=m, mode=mode, relaxation=0.0, relaxation_gain=False, input_connectivity=0.1)
+    return build_network(params, 1, 1, np.random.default_rng(0))
 
 
 # ------------------------------------------------------------------ 1. drive speed
