@@ -188,6 +188,19 @@ def split_error(
     return float(np.mean(sq / scored.n / scored.var)) if scored.n else np.nan
 
 
+def one_output(
+    n_out: int, k: int, band: tuple[np.ndarray, np.ndarray]
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """Feedback mix and band to run output ``k`` alone: the other outputs fed back measured (mix 1) and
+    unbounded, output k free-running (mix 0) within ``band``."""
+    mix = np.ones(n_out)
+    mix[k] = 0.0
+    lo = np.full(n_out, -np.inf)
+    hi = np.full(n_out, np.inf)
+    lo[k], hi[k] = band[0][k], band[1][k]
+    return mix, (lo, hi)
+
+
 def output_error(
     st: Structure,
     data: TrainingData,
@@ -198,18 +211,14 @@ def output_error(
 ) -> float:
     """Free-run NMSE (a fraction) of output ``k`` alone on the scored rows, the other outputs fed back
     measured (mix 1; ``st`` holds only output k's terms); inf when output k leaves the band."""
-    mix = np.ones(st.n_out)
-    mix[k] = 0.0
-    lo = np.full(st.n_out, -np.inf)
-    hi = np.full(st.n_out, np.inf)
-    lo[k], hi[k] = band[0][k], band[1][k]
+    mix, bounds = one_output(st.n_out, k, band)
     sq = 0.0
     for s, rows in enumerate(scored.rows):
         if not rows.size:
             continue
         ser = data.series[s]
         stop = scored.stop[s]
-        yhat, div = st.run(ser.u[:stop], ser.y[:stop], w, mix, (lo, hi))
+        yhat, div = st.run(ser.u[:stop], ser.y[:stop], w, mix, bounds)
         if div >= 0:
             return np.inf
         sq += float(np.sum((ser.y[rows, k] - yhat[rows, k]) ** 2))

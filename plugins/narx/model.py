@@ -28,6 +28,7 @@ from .estimation import (
     Structure,
     diverges,
     make_structure,
+    one_output,
     output_error,
     refine,
     segment_view,
@@ -441,21 +442,16 @@ class Narx(Family):
         def check(k: int, exps: np.ndarray, w: np.ndarray) -> bool:
             # the model as it runs, clipped: a least-squares model that needs its clip here may be the one
             # the free-running estimation repairs (GMS friction: 6 % -> 0.7 % validation NMSE)
-            st = make_structure(
-                self.embedding_,
-                exps,
-                np.full(len(exps), k, dtype=np.int64),
-                self.n_outputs_,
-                start,
-                (self.clip_lo_, self.clip_hi_),
-            )
-            mix = np.ones(self.n_outputs_)
-            mix[k] = 0.0
-            lo, hi = np.full(self.n_outputs_, -np.inf), np.full(self.n_outputs_, np.inf)
-            lo[k], hi[k] = self._bounds[0][k], self._bounds[1][k]
-            return any(diverges(st, data, sc, w, (lo, hi), mix) for sc in splits)
+            st = self._output_structure(k, exps, start)
+            mix, bounds = one_output(self.n_outputs_, k, self._bounds)
+            return any(diverges(st, data, sc, w, bounds, mix) for sc in splits)
 
         return check
+
+    def _output_structure(self, k: int, exps: np.ndarray, start: int) -> Structure:
+        """Output ``k``'s polynomial with terms ``exps`` alone, clipped as the model runs."""
+        outputs = np.full(len(exps), k, dtype=np.int64)
+        return make_structure(self.embedding_, exps, outputs, self.n_outputs_, start, (self.clip_lo_, self.clip_hi_))
 
     def _free_run_error(self, data: TrainingData):
         """error(k, exponents, weights): free-run NMSE of output k's polynomial (the other outputs fed
@@ -476,15 +472,7 @@ class Narx(Family):
             return None
 
         def error(k: int, exps: np.ndarray, w: np.ndarray) -> float:
-            st = make_structure(
-                self.embedding_,
-                exps,
-                np.full(len(exps), k, dtype=np.int64),
-                self.n_outputs_,
-                start,
-                (self.clip_lo_, self.clip_hi_),
-            )
-            return output_error(st, view, scored, w, self._bounds, k)
+            return output_error(self._output_structure(k, exps, start), view, scored, w, self._bounds, k)
 
         return error
 
