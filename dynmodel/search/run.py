@@ -53,6 +53,8 @@ FOLDS = 5
 SURVIVORS = 3
 #: ... plus the best of every other family within this factor of the best score
 FAMILY_SURVIVOR = 3.0
+#: ... plus at most this many that validated better still but left the output band at screening only
+SECOND_CHANCES = 2
 #: candidates whose neighbours are measured
 GROW_FROM = 2
 #: rounds of diagnose's moves, and moves measured per round
@@ -373,7 +375,19 @@ class Search:
         s = self.entries[k].summaries.get(level)
         return s is not None and s.finite and s.ok
 
+    def _second_chance(self, k: str) -> bool:
+        """Did ``k`` fail the band check at screening with fits the full stage does not repeat as they are (a
+        cheap variant, or one seed of a random configuration)? Its full fit is checked again on its own."""
+        e = self.entries[k]
+        s = e.summaries["screen"]
+        return s.finite and not s.ok and (e.random or not self._screen_is_final(e.cand))
+
     def survivors(self) -> list[str]:
+        """The candidates fitted in full: the best :data:`SURVIVORS` at screening, the best of every other
+        family within :data:`FAMILY_SURVIVOR` of the best, and up to :data:`SECOND_CHANCES` candidates that
+        validated better than all of them but whose screening fit left the output band (a cheap variant's
+        least-squares weights, or one seed, can leave it where the full variant does not: the default NARX
+        on a short Bouc-Wen record does, and its full variant validates best and passes)."""
         ranked = [k for k in self.ranking("screen") if self._usable(k, "screen")]
         if not ranked:
             ranked = [k for k in self.ranking("screen") if self.entries[k].summaries["screen"].finite]
@@ -386,6 +400,15 @@ class Search:
                 if e.cand.family not in families and e.summaries["screen"].score <= FAMILY_SURVIVOR * max(best, 1e-12):
                     out.append(k)
                     families.add(e.cand.family)
+            again = [
+                k
+                for k in self.ranking("screen")
+                if k not in out and self._second_chance(k) and self.entries[k].summaries["screen"].score < best
+            ][:SECOND_CHANCES]
+            for k in again:
+                self.entries[k].origin += "; fitted in full although its screening fit left the output band"
+            # in score order, so a budget that cannot fit them all keeps the best
+            out = sorted(out + again, key=lambda k: (self.entries[k].summaries["screen"].score, k))
         return out
 
     # ------------------------------------------------------------------ stages
@@ -474,6 +497,8 @@ class Search:
         # the test inputs leave the training range: a validation inside it cannot rank finely how the models
         # extrapolate, so the choice is never left to a single full fit (the best SURVIVORS are fitted in full)
         least = SURVIVORS if self.ctx.excursion > EXTRAPOLATION else 1
+        # a second chance never takes the place of a survivor that passed its screening band check
+        least += sum(1 for k in keys if self._second_chance(k))
         taken = self.budget.take("full", groups, minimum=min(least, len(groups)))
         self._planned_tasks += sum(len(g.tasks) for g in taken)
         self._run("full", [t for g in taken for t in g.tasks])

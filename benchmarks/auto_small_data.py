@@ -1,0 +1,183 @@
+"""family: auto on small recordings it was not tuned for, next to every family's default.
+
+    python benchmarks/auto_small_data.py                      # every case (about 20 min on 2 cores)
+    python benchmarks/auto_small_data.py --only kdn-3bar tanks --json small.json
+
+What a new user does with one recording of 1500 to 5000 samples: a spec naming the file, the input
+and output columns and nothing else (the default split: 60 % train, 20 % validation, 20 % test, in time
+order), then ``dynmodel fit``. The cases are slices of the real recordings in ../shared/data that
+neither the search nor the family defaults were tuned on: seals and bore shapes of the pneumatic seal
+data other than the NAPN seal (force from position and pressure, resampled to 50 Hz), a 3000-sample
+stretch of the Silverbox multisine, the first 4000 samples of the Bouc-Wen multisine validation
+recording, the Cascaded Tanks estimation recording alone, and 6000 samples of EMPS.
+
+Printed per case: the test NMSE (%) of ``family: auto`` (default budget) and of each family's default
+(narx, esn, the external esn, annealed-rnn, and the example ``arx`` family when it is installed), the
+ratio of auto to the best default ON THE TEST (an oracle a user does not have), the model auto chose and
+the wall time. A ratio near or below 1 means auto gets, without tuning, what the best family default
+would have given had the user known which one to pick. Asserts nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data"
+SEALS = DATA / "pneumatic_seal_friction" / "friction"
+
+
+def _seal(name: str) -> dict[str, Any]:
+    return {
+        "path": str(SEALS / f"{name}.csv"),
+        "header": False,
+        "columns": ["t_ms", "laser_v", "pressure_v", "force_v", "position", "pressure", "force"],
+        "time_column": "t_ms",
+        "time_unit": 0.001,
+        "resample": 0.02,
+        "input": ["position", "pressure"],
+        "output": ["force"],
+    }
+
+
+CASES: dict[str, dict[str, Any]] = {
+    "kdn-3bar": _seal("KDN_3bar"),
+    "pk-5bar": _seal("PK_5bar"),
+    "xring257-7bar": _seal("X-ring257_7bar"),
+    "kidney-2bar": _seal("Kidney_2bar"),
+    "nap310-1bar": _seal("NAP310_1bar"),
+    "silverbox-3000": {
+        "path": str(DATA / "silverbox" / "SNLS80mV.csv"),
+        "input": ["V1"],
+        "output": ["V2"],
+        "segments": [[60000, 63000]],
+    },
+    "bouc-wen-4000": {
+        "path": {
+            "input": str(DATA / "bouc_wen" / "uval_multisine.mat"),
+            "output": str(DATA / "bouc_wen" / "yval_multisine.mat"),
+        },
+        "input": ["uval_multisine"],
+        "output": ["yval_multisine"],
+        "segments": [[0, 4000]],
+    },
+    "tanks": {"path": str(DATA / "cascaded_tanks" / "dataBenchmark.csv"), "input": ["uEst"], "output": ["yEst"]},
+    "emps-6000": {
+        "path": str(DATA / "emps" / "DATA_EMPS.mat"),
+        "input": ["vir"],
+        "output": ["qm"],
+        "segments": [[0, 6000]],
+    },
+}
+DEFAULTS: dict[str, dict[str, Any]] = {
+    "narx": {"family": "narx"},
+    "esn": {"family": "esn"},
+    "esn-ext": {"family": "esn", "params": {"mode": "external"}},
+    "rnn": {"family": "annealed-rnn"},
+    "arx": {"family": "arx"},
+}
+
+
+def _fit(raw: dict[str, Any], workers: int | None) -> tuple[Any, float]:
+    from dynmodel import engine
+    from dynmodel.data import load_dataset
+    from dynmodel.search import search_options
+    from dynmodel.spec import validate_spec
+
+    spec = validate_spec(raw, raw["name"], ROOT)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ds = load_dataset(spec)
+        with search_options(workers=workers):
+            model, _ = engine.fit_dataset(spec, ds)
+    return model, time.perf_counter() - t0
+
+
+def _installed() -> set[str]:
+    from dynmodel.registry import families
+
+    return set(families())
+
+
+def run_case(name: str, args) -> dict[str, Any]:
+    base = {"name": name, "data": CASES[name], "seed": 0, "evaluation": {"metrics": ["nmse", "rmse"]}}
+    model_section: dict[str, Any] = {"family": "auto"}
+    if args.budget is not None:
+        model_section["params"] = {"budget": args.budget}
+    row: dict[str, Any] = {"case": name, "defaults": {}}
+    model, seconds = _fit({**base, "model": model_section}, args.workers)
+    search = model.search or {}
+    row.update(
+        auto=(model.metrics.get("test") or {}).get("nmse"),
+        auto_validation=(model.metrics.get("validation") or {}).get("nmse"),
+        seconds=seconds,
+        chosen=search.get("winner_summary") or model.family.name,
+        family=model.family.name,
+        notes=search.get("notes", []),
+    )
+    if not args.no_defaults:
+        installed = _installed()
+        for dname, section in DEFAULTS.items():
+            if section["family"] not in installed:
+                continue
+            try:
+                dm, _ = _fit({**base, "model": section}, 1)
+                row["defaults"][dname] = (dm.metrics.get("test") or {}).get("nmse")
+            except Exception as exc:  # noqa: BLE001 - a failing default is a figure too
+                row["defaults"][dname] = f"error: {exc}"
+    return row
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, str):
+        return "error"
+    return f"{v:.3g}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--only", nargs="*", help=f"cases: {', '.join(CASES)}")
+    ap.add_argument("--budget", type=float, help="search budget in seconds (default: auto's own, 300)")
+    ap.add_argument("--workers", type=int, help="parallel fits of the search (default: one per core)")
+    ap.add_argument("--no-defaults", action="store_true", help="run auto only")
+    ap.add_argument("--json", type=Path, help="write every figure as JSON")
+    args = ap.parse_args()
+    if not DATA.is_dir():
+        raise SystemExit(f"no data folder at {DATA}")
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    results = []
+    for name in args.only or list(CASES):
+        if name not in CASES:
+            raise SystemExit(f"unknown case '{name}' (cases: {', '.join(CASES)})")
+        print(f"... {name}", flush=True)
+        results.append(run_case(name, args))
+        r = results[-1]
+        print(f"    auto {_fmt(r['auto'])} % in {r['seconds']:.0f} s: {r['chosen']}", flush=True)
+        if args.json:
+            args.json.write_text(json.dumps(results, indent=1, default=str))
+    names = [d for d in DEFAULTS if any(d in r["defaults"] for r in results)]
+    print("\ntest NMSE % (default split 60/20/20 of one recording); x best = auto / best default on the test")
+    head = f"{'case':<16} {'auto':>7} " + " ".join(f"{d:>8}" for d in names) + f" {'x best':>7} {'s':>5}  chosen"
+    print(head)
+    print("-" * len(head))
+    for r in results:
+        nums = [v for v in r["defaults"].values() if isinstance(v, (int, float))]
+        ratio = r["auto"] / min(nums) if nums and r["auto"] is not None and min(nums) > 0 else None
+        print(
+            f"{r['case']:<16} {_fmt(r['auto']):>7} "
+            + " ".join(f"{_fmt(r['defaults'].get(d)):>8}" for d in names)
+            + f" {_fmt(ratio):>7} {r['seconds']:>5.0f}  {r['chosen'][:70]}"
+        )
+
+
+if __name__ == "__main__":
+    main()
