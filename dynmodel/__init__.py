@@ -24,7 +24,7 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 from .errors import DynmodelError  # noqa: E402
-from .spec import load_spec, validate_spec  # noqa: E402
+from .spec import Spec, load_spec, validate_spec  # noqa: E402
 
 
 def fit(spec, data=None, progress=None):
@@ -70,4 +70,4 @@ def load(path):
     return store.load(path)
 
 
-__all__ = ["__version__", "DynmodelError", "load_spec", "validate_spec", "fit", "sweep", "save", "load"]
+__all__ = ["__version__", "DynmodelError", "Spec", "load_spec", "validate_spec", "fit", "sweep", "save", "load"]
