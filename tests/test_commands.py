@@ -202,3 +202,24 @@ def test_the_library_functions_need_neither_typer_nor_rich(tmp_path, small_spec)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=tmp_path)
     assert out.stdout.strip() == "[]"
     assert yaml.safe_load((tmp_path / "m.json").read_text())["metrics"]["test"]["nmse"] < 0.5
+
+
+def test_diagnose_spec_file_names_a_hidden_delay_and_writes_the_report(tmp_path):
+    from hidden_effects import missing_delay
+
+    from dynmodel.commands import diagnose_spec_file
+    from dynmodel.diagnose import Settings as DiagnoseSettings
+
+    spec = write_yaml(tmp_path / "delay.yaml", missing_delay(3).spec(tmp_path))
+    with pytest.raises(DynmodelError, match="not a JSON summary"):
+        (tmp_path / "notes.txt").write_text("mine\n")
+        diagnose_spec_file(spec, json_path=tmp_path / "notes.txt")
+    assert not any(p.name.endswith("-diagnosis") for p in tmp_path.iterdir())  # refused before any work
+    done = diagnose_spec_file(spec, report=tmp_path / "rep", json_path=tmp_path / "d.json", settings=DiagnoseSettings())
+    assert done.diagnosis.verdict == "missing-delay" and done.index == tmp_path / "rep" / "index.md"
+    assert done.extended == tmp_path / "rep" / "extended.yaml" and done.extended.exists()
+    summary = json.loads((tmp_path / "d.json").read_text())
+    assert summary["findings"][0]["cause"] == "missing-delay"
+    assert summary["gain"]["test_nmse_after"] < summary["gain"]["test_nmse_before"]
+    refit = fit_and_save(done.extended)  # the extended spec runs as it is
+    assert refit.model.metrics["test"]["nmse"] == pytest.approx(summary["gain"]["test_nmse_after"], rel=1e-9)
