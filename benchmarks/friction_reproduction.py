@@ -50,9 +50,9 @@ def fit(name: str, out: Path, figures: Path | None):
         extra = f"  test RMSE {m['test']['rmse']:.4g}, fit {m['test']['fit']:.2f} %"
     print(f"  {name:32s} {line}{extra}  ({time.perf_counter() - t0:.0f} s)", flush=True)
     if figures is not None:
-        from dynmodel.cli import _plot_fit
+        from dynmodel.commands.fit import plot_fit
 
-        _plot_fit(figures / f"{name}.png", ds, runs, model, name)
+        plot_fit(figures / f"{name}.png", ds, runs, model, name)
     return model
 
 

@@ -21,13 +21,19 @@ On arrays or DataFrames (families are scikit-learn style estimators)::
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
 
 from .errors import DynmodelError  # noqa: E402
-from .spec import load_spec, validate_spec  # noqa: E402
+from .spec import Spec, load_spec, validate_spec  # noqa: E402
+
+if TYPE_CHECKING:
+    from .model import FittedModel
 
 
-def fit(spec, data=None, progress=None):
+def fit(spec: Spec | dict | str | Path, data: Any = None, progress: Any = None) -> FittedModel:
     """Fit the model described by ``spec`` (a loaded spec, a mapping or a path to a YAML file).
 
     ``data``: recordings given in Python instead of the spec's data source: ``(u, y)``, a DataFrame with
@@ -43,7 +49,7 @@ def fit(spec, data=None, progress=None):
 
     if isinstance(spec, dict):
         spec = validate_spec(spec)
-    elif not hasattr(spec, "model"):
+    elif not isinstance(spec, Spec):
         spec = load_spec(spec)
     with progress_reporter(progress) as report:
         return engine.fit(spec, report)
@@ -70,4 +76,4 @@ def load(path):
     return store.load(path)
 
 
-__all__ = ["__version__", "DynmodelError", "load_spec", "validate_spec", "fit", "sweep", "save", "load"]
+__all__ = ["__version__", "DynmodelError", "Spec", "load_spec", "validate_spec", "fit", "sweep", "save", "load"]

@@ -28,7 +28,7 @@ from .errors import DataError, ParameterError, SpecError
 from .family import Family, Progress, no_progress
 from .metrics import COSTS
 from .model import FittedModel
-from .spec import DataCommon, EvaluationSpec, parse_yaml, validate_spec, validation_summary
+from .spec import DataCommon, EvaluationSpec, Spec, parse_yaml, validate_spec, validation_summary
 
 #: ``data.path`` of a model fitted on recordings given in Python
 IN_MEMORY = "<arrays>"
@@ -207,7 +207,9 @@ def _pairs(obj: Any, ins: list[str] | None, outs: list[str] | None, where: str) 
     return (us[0], ys[0]) if len(us) == 1 else (us, ys)
 
 
-def fit_spec(spec: Any, data: Any, progress: Progress | bool | None = None) -> FittedModel:
+def fit_spec(
+    spec: Spec | Mapping[str, Any] | str | Path, data: Any, progress: Progress | bool | None = None
+) -> FittedModel:
     """``dynmodel.fit(spec, data=...)``: the spec's model, cost, seed, splits and preprocessing on
     recordings given in Python instead of the spec's data source.
 
@@ -255,11 +257,11 @@ def fit_spec(spec: Any, data: Any, progress: Progress | bool | None = None) -> F
     return model
 
 
-def _raw_spec(spec: Any) -> tuple[dict[str, Any], str, Path | None]:
+def _raw_spec(spec: Spec | Mapping[str, Any] | str | Path) -> tuple[dict[str, Any], str, Path | None]:
     """A spec as a raw mapping, with its source text for messages and the folder paths resolve against."""
     if isinstance(spec, Mapping):
         return dict(spec), "<spec>", None
-    if hasattr(spec, "model") and hasattr(spec, "data"):  # a loaded spec
+    if isinstance(spec, Spec):  # a loaded spec
         raw = spec.model_dump(mode="python", exclude_unset=False)
         return raw, spec.source, spec.base_dir
     path = Path(spec)

@@ -36,9 +36,13 @@ from concurrent.futures import CancelledError, Executor, Future, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from .errors import DynmodelError
+
+if TYPE_CHECKING:
+    from .data.dataset import Dataset
+    from .spec import Spec
 
 Status = Literal["ok", "diverged", "error"]
 
@@ -182,7 +186,7 @@ _data_cache: OrderedDict[str, Any] = OrderedDict()
 _data_lock = threading.Lock()
 
 
-def data_key(spec) -> str:
+def data_key(spec: Spec) -> str:
     """What decides the loaded recordings of ``spec``: its resolved data section without the
     preprocessing keys, and the spec seed when added noise takes its seed from it."""
     data = spec.resolved()["data"]
@@ -193,7 +197,7 @@ def data_key(spec) -> str:
     return json.dumps([data, seed], sort_keys=True, default=str)
 
 
-def cached_dataset(spec):
+def cached_dataset(spec: Spec) -> tuple[Dataset, float]:
     """(dataset, seconds spent loading: 0 when this process had it already)."""
     from .data import load_dataset
 

@@ -9,14 +9,11 @@ free run); ``--debug`` shows tracebacks.
 from __future__ import annotations
 
 import functools
-import json
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Optional
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.markup import escape
@@ -24,7 +21,7 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from . import __version__
-from .errors import EXIT_INTERNAL, DynmodelError, FreeRunDiverged
+from .errors import EXIT_INTERNAL
 
 
 class _OneLineErrors(TyperGroup):
@@ -153,12 +150,6 @@ def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
     return table
 
 
-def _write_json(path: Path, payload: dict[str, Any]) -> None:
-    from .paths import write_text
-
-    write_text(path, json.dumps(payload, indent=2) + "\n")
-
-
 # ------------------------------------------------------------------------------ fit
 _FORCE = typer.Option(False, "--force", help="replace an existing file that is not a previous output of this kind")
 
@@ -182,40 +173,16 @@ def fit(
 ) -> None:
     """Fit the spec's model, evaluate free runs on every split, save it to HDF5 (family auto, or no
     model section: search every family's candidates and keep the best on validation, docs/auto.md)."""
-    from . import engine, store
-    from .data import load_dataset
-    from .paths import check_outputs, spec_inputs
+    from .commands.fit import fit_and_save
     from .progress import Reporter
-    from .search import search_options
-    from .spec import load_spec
-    from .usefulness import assess, stability_fix, summary_line
 
-    t0 = time.perf_counter()
-    s = load_spec(spec)
-    if seed is not None:
-        s.seed = seed
-    target = out_path if out_path is not None else s.output_path()
-    check_outputs(
-        [
-            (target, "model", "--out" if out_path is not None else "output:"),
-            (json_path, "json", "--json"),
-            (plot, "plot", "--plot"),
-        ],
-        spec_inputs(s, spec),
-        force,
-    )
-    with Reporter(enabled=not quiet) as progress, search_options(workers=workers, scheduler=scheduler):
-        progress("data", None, "loading")
-        ds = load_dataset(s)
-        model, runs = engine.fit_dataset(s, ds, progress)
-        model.spec["output"] = str(Path(target).resolve())
-        notes = assess(model, ds, runs)
-        store.save(model, target)
-    elapsed = time.perf_counter() - t0
+    with Reporter(enabled=not quiet) as progress:
+        result = fit_and_save(spec, out_path, json_path, plot, seed, force, workers, scheduler, progress)
+    s, model, ds = result.spec, result.model, result.dataset
     recs = ", ".join(ds.source_names())
-    family = model.family.name if model.search is None else f"auto -> {model.family.name}"
-    cost = model.spec.get("cost") or s.cost
-    out.print(f"[bold]{s.name}[/]: {family} fitted with cost {cost} on {recs} in {elapsed:.1f} s")
+    out.print(
+        f"[bold]{s.name}[/]: {result.family_label} fitted with cost {result.cost} on {recs} in {result.seconds:.1f} s"
+    )
     if model.search is not None:
         _print_search(model.search)
     out.print(metrics_table(model.metrics))
@@ -226,37 +193,13 @@ def fit(
         )
     for note in ds.excursion_notes():
         out.print(f"note: {note}", markup=False, soft_wrap=True)
-    out.print(f"model written to {Path(target).resolve()}")
-    if json_path:
-        payload = {
-            "metrics": model.metrics,
-            "model": str(Path(target).resolve()),
-            "assessment": [n.to_json() for n in notes],
-        }
-        if model.search is not None:
-            payload["search"] = model.search
-        _write_json(json_path, payload)
-    if plot:
-        _plot_fit(plot, ds, runs, model, s.name)
-        out.print(f"plot written to {plot}")
-    if model.search is not None and model.search.get("interrupted"):
-        from .errors import Interrupted
-
-        raise Interrupted(
-            f"the search was {model.search['interrupted']}; the best model so far was saved",
-            str(spec),
-            "rerun to search the rest of the budget (the same seed gives the same search)",
-        )
-    bad = model.unstable
-    if bad:
-        raise FreeRunDiverged(
-            f"the free run diverged on the {bad['split']} split at sample {bad['sample']} "
-            f"(t = {bad['time']:.6g}) of recording '{bad['recording']}'",
-            str(spec),
-            f"{stability_fix(model.family.stability_hint, s.cost)}; the model was saved for inspection",
-            sample=bad["sample"],
-        )
-    line = summary_line(notes, str(spec), s.cost)
+    out.print(f"model written to {result.path}")
+    if result.plot_path is not None:
+        out.print(f"plot written to {result.plot_path}")
+    problem = result.problem()
+    if problem is not None:
+        raise problem
+    line = result.warning()
     if line:
         err.print(f"warning: {line}", markup=False, soft_wrap=True)
 
@@ -279,39 +222,6 @@ def _print_search(record: dict[str, Any]) -> None:
         out.print(f"note: {note}", markup=False, soft_wrap=True)
 
 
-def _plot_fit(path: Path, ds, runs, model, name: str) -> None:
-    from .plots import measured_vs_simulated
-
-    # the recording holding the test split (else the first), whole, with the splits shaded
-    rec = next((r for s in ds.test_splits() for r, _, _ in ds.ranges[s]), 0)
-    r = ds.recordings[rec]
-    t = np.arange(r.n) * ds.sampling_time
-    spans = [
-        (split, a * ds.sampling_time, b * ds.sampling_time)
-        for split in ds.splits()
-        for rr, a, b in ds.ranges[split]
-        if rr == rec
-    ]
-    scored = [
-        a
-        for split in (*ds.test_splits(), "validation", "train")
-        for rr, a, _ in ds.scored(split, model.warmup)
-        if rr == rec
-    ]
-    start = scored[0] if scored else 0
-    measured_vs_simulated(
-        path,
-        t,
-        r.y,
-        runs[rec].y,
-        model.output_names,
-        f"{name}: {r.name}",
-        spans,
-        zoom=(start, min(r.n, start + 400)),
-        tune_in=model.warmup,
-    )
-
-
 # ------------------------------------------------------------------------------ validate
 @app.command()
 @handled
@@ -322,15 +232,10 @@ def validate(
     """Check a spec and its data without fitting: keys, files, columns, values, split sizes, the output path."""
     import yaml
 
-    from .data import describe, load_dataset
-    from .engine import check_plan
-    from .paths import check_outputs, spec_inputs
-    from .spec import load_spec
+    from .commands.fit import validate_spec_file
 
-    s = load_spec(spec)
-    check_outputs([(s.output_path(), "model", "output:")], spec_inputs(s, spec))  # what `fit` would refuse
-    ds = load_dataset(s)
-    plan = check_plan(s, ds)
+    result = validate_spec_file(spec)
+    s, ds, plan = result.spec, result.dataset, result.plan
     out.print(
         f"[green]ok[/]: {spec} ({s.model.family}, cost {s.cost or 'per family'}, {len(ds.recordings)} recording(s), "
         f"inputs {ds.input_names}, outputs {ds.output_names}, sampling time {ds.sampling_time:g})"
@@ -338,7 +243,7 @@ def validate(
     table = Table()
     for col in ("split", "samples", "scored", "segments"):
         table.add_column(col)
-    for row in describe(ds):
+    for row in result.splits:
         table.add_row(row["split"], str(row["samples"]), str(row["scored"]), escape(", ".join(row["segments"])))
     out.print(table)
     if isinstance(plan, list):  # family auto: what the search will do
@@ -368,55 +273,21 @@ def predict(
     force: bool = _FORCE,
 ) -> None:
     """Replay a saved model (free run) on a new input series; the table keeps the input file's time column."""
-    from . import prediction, store
-    from .errors import DataError
-    from .paths import check_outputs
+    from .commands.predict import predict_file
+    from .prediction import write_table
 
     if out_path is not None and str(out_path) == "-":
         out_path = None
-    model = store.load(model_path)
-    inp = prediction.read_inputs(model, input_path, tune_in)
-    columns = prediction.header(model, inp.time_name, skip_tune_in)
-    check_outputs(
-        [(out_path, "csv", "--out"), (plot, "plot", "--plot")],
-        {"model": model_path, "input file": input_path, "tune-in file": tune_in},
-        force,
-        columns={"--out": [prediction.header(model, inp.time_name, skip) for skip in (False, True)]},
-    )
-    try:
-        run = model.run(inp.u, inp.y_tune)
-    except ValueError as exc:
-        raise DataError(str(exc), str(input_path), "check the input file") from None
-    rows = prediction.table(model, inp, run, skip_tune_in)
-    prediction.write_table(out_path, columns, rows)
-    if out_path is not None:
-        skipped = f" (the {model.warmup} tune-in rows left out)" if skip_tune_in and model.warmup else ""
-        marked = f" (the first {model.warmup} rows are the measured tune-in, marked in column 'measured')"
-        err.print(
-            f"{len(rows)} predictions written to {out_path}{skipped or (marked if model.warmup else '')}",
-            markup=False,
-        )
-    if plot:
-        from .plots import measured_vs_simulated
-
-        y_true = inp.y_measured if inp.y_measured is not None else np.full_like(run.y, np.nan)
-        measured_vs_simulated(
-            plot,
-            inp.time,
-            y_true,
-            run.y,
-            model.output_names,
-            f"{model_path.name} on {input_path.name}",
-            tune_in=model.warmup,
-        )
-        err.print(f"plot written to {plot}", markup=False)
-    if run.diverged_at is not None:
-        raise FreeRunDiverged(
-            f"the free run diverged at sample {run.diverged_at} ({inp.time_name} = {inp.time[run.diverged_at]:.6g}); "
-            "later predictions are NaN",
-            str(input_path),
-            "check that the input stays within the training range",
-        )
+    result = predict_file(model_path, input_path, out_path, tune_in, plot, skip_tune_in, force)
+    if out_path is None:
+        write_table(None, result.columns, result.rows)
+    else:
+        err.print(result.written_line(), markup=False)
+    if result.plot_path is not None:
+        err.print(f"plot written to {result.plot_path}", markup=False)
+    problem = result.problem()
+    if problem is not None:
+        raise problem
 
 
 # ------------------------------------------------------------------------------ inspect
@@ -431,14 +302,11 @@ def inspect(
     """Summarize a saved model: family, data, preprocessing, metrics, provenance."""
     import yaml
 
-    from . import store
-    from .inspection import FACTS, PROVENANCE, describe
-    from .paths import check_outputs
-    from .usefulness import assess, summary_line
+    from .commands.predict import inspect_model
+    from .inspection import FACTS, PROVENANCE
 
-    check_outputs([(json_path, "json", "--json")], {"model": model_path}, force)
-    model = store.load(model_path)
-    summary = describe(model, model_path)
+    result = inspect_model(model_path, json_path, force)
+    model, summary = result.model, result.summary
     out.print(f"[bold]{model_path}[/]  family [bold]{model.family.name}[/]  ({model.spec.get('name')})")
     facts = Table(show_header=False, box=None)
     facts.add_column(style="dim")
@@ -455,55 +323,15 @@ def inspect(
     if model.search is not None:
         from .search.report import headline
 
-        summary["search"] = {k: model.search.get(k) for k in ("winner", "winner_summary", "notes", "interrupted")}
         out.print(f"chosen by family auto: {headline(model.search)}", markup=False, soft_wrap=True)
     out.print(metrics_table(model.metrics, "free-run metrics"))
-    line = summary_line(assess(model), model.spec.get("spec_file") or model.provenance.get("spec_file"))
-    if line:
-        out.print(f"note: {line}", markup=False, soft_wrap=True)
+    if result.note:
+        out.print(f"note: {result.note}", markup=False, soft_wrap=True)
     if spec:
         print(yaml.safe_dump(model.spec, sort_keys=False))
-    if json_path:
-        _write_json(json_path, summary)
 
 
 # ------------------------------------------------------------------------------ reliability-check
-def _parse_params(items: list[str], example: str = "a=3.5") -> dict[str, Any]:
-    """The values of repeated ``--param key=value`` options, each value read as YAML."""
-    import yaml
-
-    from .errors import SpecError
-
-    values: dict[str, Any] = {}
-    for item in items:
-        if "=" not in item:
-            raise SpecError(f"'{item}' is not key=value", "--param", f"write e.g. --param {example}")
-        key, raw = item.split("=", 1)
-        try:
-            values[key.strip()] = yaml.safe_load(raw)
-        except yaml.YAMLError:
-            raise SpecError(
-                f"cannot read the value of '{item}'",
-                "--param",
-                f"write the value as YAML, e.g. --param {example} or --param C=[[0.3,2],[-0.5,-1.9]]",
-            ) from None
-    return values
-
-
-def _parse_sine(text: str):
-    from .errors import SpecError
-    from .reliability import Sine
-
-    parts = text.split(":")
-    try:
-        if len(parts) not in (2, 3):
-            raise ValueError
-        nums = [float(p) for p in parts]
-    except ValueError:
-        raise SpecError(f"'{text}' is not AMPLITUDE:OMEGA[:OFFSET]", "--sine", "write e.g. --sine 27:1.4") from None
-    return Sine(nums[0], nums[1], nums[2] if len(nums) == 3 else None)
-
-
 @app.command("reliability-check")
 @handled
 def reliability_check(
@@ -534,63 +362,19 @@ def reliability_check(
 ) -> None:
     """Does the model forget its initial state? Replica test, Lyapunov exponents, constant-input scan
     (thesis 4.4.1, 5.3.1); exit 0 reliable, 1 unreliable or inconclusive."""
-    from . import registry
-    from .errors import SpecError
+    from .commands.reliability import check_reliability
     from .progress import Reporter
-    from .reliability import Settings, check, check_model
-    from .spec import validation_summary
-
-    if (model_path is None) == (system is None):
-        raise DynmodelError(
-            "give either a model file or --system NAME"
-            if model_path is None
-            else "give a model file or --system, not both",
-            "reliability-check",
-            "e.g. dynmodel reliability-check model.h5, or dynmodel reliability-check --system duffing",
-        )
-    if param and system is None:
-        raise DynmodelError("--param sets parameters of a --system test system", "--param", "drop it for model files")
-    from .paths import check_outputs
-
-    check_outputs([(json_path, "json", "--json")], {"model": model_path}, force)
-    settings = Settings(
-        replicas=replicas,
-        scan_replicas=scan_replicas,
-        length=length,
-        levels=levels,
-        seed=seed,
-        tolerance=tolerance,
-        sines=tuple(_parse_sine(x) for x in sine),
-    )
-    with Reporter(enabled=not quiet) as progress:
-        if system is not None:
-            cls = registry.system(system)
-            values = _parse_params(param)
-            try:
-                target = cls(**values)
-            except ValueError as exc:  # pydantic's ValidationError is a ValueError
-                raise SpecError(
-                    f"invalid parameter ({validation_summary(exc)})",
-                    "--param",
-                    f"'{system}' takes {', '.join(cls.Params.model_fields)}",
-                ) from None
-            report = check(target, settings, progress)
-            source = {"test_system": system, "params": target.params.model_dump(mode="json")}
-        else:
-            from . import store
-
-            assert model_path is not None  # exactly one of MODEL and --system (checked above)
-            progress("load", None, str(model_path))
-            model = store.load(model_path)
-            report = check_model(model, settings, progress, str(model_path))
-            source = {"model": str(model_path)}
+    from .reliability import Settings
     from .reliability.report import render
 
-    render(report, out)
-    if json_path:
-        _write_json(json_path, {**source, **report.to_json()})
-    if report.exit_code:
-        raise typer.Exit(report.exit_code)
+    settings = Settings(
+        replicas=replicas, scan_replicas=scan_replicas, length=length, levels=levels, seed=seed, tolerance=tolerance
+    )
+    with Reporter(enabled=not quiet) as progress:
+        result = check_reliability(model_path, system, param, settings, sine, json_path, force, progress)
+    render(result.report, out)
+    if result.report.exit_code:
+        raise typer.Exit(result.report.exit_code)
 
 
 # ------------------------------------------------------------------------------ diagnose
@@ -623,24 +407,10 @@ def diagnose_cmd(
 ) -> None:
     """Show what the model's free run gets wrong, name the cause, extend the model and measure the gain
     on the held-out test split (exit 0 when the diagnosis ran, adequate or not)."""
-    from .diagnose import Settings, diagnose
-    from .diagnose.report import write_extended, write_json, write_report
-    from .paths import check_outputs, safe_name, spec_inputs
+    from .commands.diagnose import diagnose_spec_file
+    from .diagnose import Settings
     from .progress import Reporter
-    from .spec import load_spec, parse_yaml, read_spec_text
 
-    s = load_spec(spec)  # one-line errors for a bad spec before any work
-    folder = report if report is not None else spec.resolve().parent / f"{safe_name(s.name)}-diagnosis"
-    check_outputs(
-        [
-            (folder, "report", "--report"),
-            (json_path, "json", "--json"),
-        ],
-        spec_inputs(s, spec),
-        force,
-    )
-    raw = parse_yaml(read_spec_text(spec), str(spec))
-    raw.setdefault("name", spec.stem)
     settings = Settings(
         alpha=alpha,
         min_share=min_share,
@@ -652,19 +422,16 @@ def diagnose_cmd(
         seed=seed,
     )
     with Reporter(enabled=not quiet) as progress:
-        result = diagnose(raw, str(spec), spec.resolve().parent, settings, progress)
-        progress("report", None, str(folder))
-        index = write_report(result, folder)
-        extended = write_extended(result, folder)
+        done = diagnose_spec_file(spec, report, json_path, settings, force, progress)
+    result = done.diagnosis
     _print_diagnosis(result)
     for note in result.notes:
         out.print(f"note: {note}", markup=False, soft_wrap=True)
-    out.print(f"report written to {index}")
-    if extended is not None:
-        out.print(f"extended spec written to {extended} (run it with: dynmodel fit {extended})")
-    if json_path:
-        write_json(result, json_path)
-        out.print(f"summary written to {json_path}")
+    out.print(f"report written to {done.index}")
+    if done.extended is not None:
+        out.print(f"extended spec written to {done.extended} (run it with: dynmodel fit {done.extended})")
+    if done.json_path is not None:
+        out.print(f"summary written to {done.json_path}")
 
 
 def _print_diagnosis(result) -> None:
@@ -696,24 +463,12 @@ def sweep_cmd(
 ) -> None:
     """Fit the spec at every point of a grid of settings, in parallel (local processes or Dask), and rank
     the points by their validation free-run error."""
-    from .paths import check_outputs
+    from .commands.sweep import run_sweep
     from .progress import Reporter
-    from .sweeps import run as sweeps
 
-    folder = out_dir if out_dir is not None else sweeps.default_out(spec)
-    check_outputs([(json_path, "json", "--json")], {"spec": [spec], "grid": [grid]}, force)
     try:
         with Reporter(enabled=not quiet) as progress:
-            result = sweeps.sweep(
-                spec,
-                grid,
-                out=folder,
-                keep=keep,  # type: ignore[arg-type]  # a str from the command line: sweep() checks it
-                resume=resume,
-                workers=workers,
-                scheduler=scheduler,
-                progress=progress,
-            )
+            result = run_sweep(spec, grid, out_dir, keep, resume, workers, scheduler, json_path, force, progress)
     except KeyboardInterrupt as exc:
         done = getattr(exc, "result", None)
         counts = (
@@ -722,21 +477,20 @@ def sweep_cmd(
             else "no point"
         )
         err.print(
-            f"interrupted: {counts} finished, kept in {folder}; run the same command with --resume to finish",
+            f"interrupted: {counts} finished, kept in {getattr(exc, 'folder', out_dir)}; "
+            "run the same command with --resume to finish",
             markup=False,
         )
         raise typer.Exit(130) from None
-    _print_sweep(result, json_path)
+    _print_sweep(result)
 
 
-def _print_sweep(result, json_path: Optional[Path]) -> None:
+def _print_sweep(result) -> None:
     from .sweeps.report import render
 
     render(result, out)
     for text, n in result.info.get("warnings", {}).items():
         err.print(f"warning ({n} point{'s' if n > 1 else ''}): {text}", markup=False)
-    if json_path:
-        _write_json(json_path, result.to_json())
     if result.best is None:
         c = result.counts()
         err.print(
@@ -786,44 +540,29 @@ def control(
 ) -> None:
     """Feed-forward control (thesis 6.4): P-control of a plant, the model's force added from the switch on;
     NMSE / MAX of the tracking error before and after, alpha and beta, and the perfect model's limits."""
-
     from . import control as ctl
-    from . import store
-    from .errors import SpecError
+    from .commands.control import run_control
     from .progress import Reporter
 
-    if hold not in ("linear", "zero"):
-        raise SpecError(f"--hold {hold} is not linear or zero", "--hold", "use --hold linear (default) or --hold zero")
-    from .paths import check_outputs
-
-    check_outputs(
-        [(json_path, "json", "--json"), (plot, "plot", "--plot")], {"model": model_path, "plant file": plant}, force
-    )
-    t0 = time.perf_counter()
-    model = store.load(model_path)
-    described = ctl.read_plant(plant) if plant is not None else None
-    name, params = ctl.plant_source(model, described)
-    the_plant, resolved = ctl.make_plant(name, params, _parse_params(param))
     settings = ctl.Settings(
         duration=duration, switch=switch, skip=skip, realizations=realizations, seed=seed, hold=hold, workers=workers
     )
     with Reporter(enabled=not quiet) as progress:
-        report = ctl.run(model, the_plant, settings, progress)
-    report.plant.update({"generator": name, "params": resolved})
-    elapsed = time.perf_counter() - t0
+        result = run_control(model_path, plant, param, settings, json_path, plot, force, progress)
+    model, report = result.model, result.report
     st = report.settings
     out.print(
         f"[bold]control[/]: {escape(str(model_path))} ({model.family.name}, inputs "
         f"{escape(str(model.input_names))}, delay lines {model.preprocessor.delay_lines or 'none'}"
-        f"{' (differences)' if model.preprocessor.delay_form == 'difference' else ''}) on {name}: "
-        f"{escape(the_plant.description)}"
+        f"{' (differences)' if model.preprocessor.delay_form == 'difference' else ''}) on {result.name}: "
+        f"{escape(result.plant.description)}"
     )
     out.print(
         f"{duration:g} s at {st['sampling_time']:g} s, feed-forward from {switch:g} s ({hold} hold), "
         f"{skip:g} s skipped after the start and the switch; {realizations} noise realization"
-        f"{'s' if realizations > 1 else ''} (seed {seed}); {elapsed:.1f} s"
+        f"{'s' if realizations > 1 else ''} (seed {seed}); {result.seconds:.1f} s"
     )
-    summary = report.summary()
+    summary = result.summary()
     table = Table()
     table.add_column("criterion")
     table.add_column("model (mean ± std)", justify="right")
@@ -835,23 +574,7 @@ def control(
     out.print(table)
     for note in report.notes:
         out.print(f"note: {escape(note)}")
-    if json_path:
-        _write_json(json_path, {"model": str(model_path), **report.to_json()})
     if plot:
-        from .plots import tracking_error
-
-        s = report.series
-        tracking_error(
-            plot,
-            s["t"],
-            s["reference"],
-            s["error_model"],
-            s["error_perfect"],
-            switch,
-            skip,
-            f"{model_path.name} on {name}: alpha {summary['model']['alpha']['mean']:.4g} %, "
-            f"beta {summary['model']['beta']['mean']:.4g} %",
-        )
         out.print(f"plot written to {plot}")
 
 
@@ -860,24 +583,15 @@ def control(
 @handled
 def plugins() -> None:
     """List the installed model families, data generators and reliability test systems."""
-    from importlib.metadata import entry_points
+    from .commands.catalog import installed_plugins
 
-    from . import registry
-
-    for group, loaded, title in [
-        (registry.FAMILIES, registry.families(), "model families"),
-        (registry.SOURCES, registry.sources(), "data generators"),
-        (registry.SOURCES, registry.benchmarks(), "benchmark sources (data: {benchmark: NAME, root: DIR})"),
-        (registry.SYSTEMS, registry.systems(), "test systems for reliability-check --system"),
-        (registry.DETECTORS, registry.detectors(), "detectors of dynmodel diagnose"),
-    ]:
-        eps = {ep.name: ep.value for ep in entry_points(group=group)}
-        table = Table(title=f"{title} ({group})", title_justify="left")
+    for group in installed_plugins():
+        table = Table(title=f"{group.title} ({group.group})", title_justify="left")
         table.add_column("name")
         table.add_column("description")
         table.add_column("provided by", style="dim")
-        for name, obj in loaded.items():
-            table.add_row(name, getattr(obj, "description", ""), eps.get(name, ""))
+        for row in group.rows:
+            table.add_row(*row)
         out.print(table)
 
 
@@ -888,16 +602,10 @@ def schema(
     force: bool = _FORCE,
 ) -> None:
     """Print the JSON Schema of the spec (every installed family's and generator's parameters)."""
-    from .paths import check_outputs
-    from .spec import spec_json_schema
+    from .commands.catalog import schema_text
 
-    check_outputs([(out_path, "json", "--out")], None, force)
-    text = json.dumps(spec_json_schema(), indent=2)
-    if out_path:
-        from .paths import write_text
-
-        write_text(out_path, text + "\n")
-    else:
+    text = schema_text(out_path, force)
+    if not out_path:
         print(text)
 
 
@@ -917,34 +625,12 @@ def generate(
     force: bool = _FORCE,
 ) -> None:
     """Write a generated input/output recording as CSV (for trying file-based specs)."""
-    from . import registry
-    from .errors import SpecError
-    from .paths import check_outputs
-    from .spec import validation_summary
+    from .commands.catalog import generate_recording
 
-    gen = registry.source(generator)
-    columns = ["t", *gen.input_names, *gen.output_names]
-    check_outputs([(out_path, "csv", "--out"), (plot, "plot", "--plot")], None, force)  # replaces a CSV with --force
-    values = _parse_params(param, example="a0=0.7")
-    try:
-        params = gen.Params.model_validate(values)
-    except ValueError as exc:
-        raise SpecError(
-            f"invalid parameter ({validation_summary(exc)})",
-            "--param",
-            f"see the '{generator}' entry of `dynmodel schema`",
-        ) from None
-    u, y = gen.generate(params, n, np.random.default_rng(seed))
-    t = np.arange(n) * gen.sampling_time(params)
-    header = ",".join(columns)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    np.savetxt(out_path, np.column_stack([t, u, y]), delimiter=",", header=header, comments="", fmt="%.12g")
+    result = generate_recording(generator, out_path, n, seed, param, plot, force)
     err.print(f"{n} samples of {generator} (seed {seed}) written to {out_path}", markup=False)
-    if plot:
-        from .plots import recording
-
-        recording(plot, t, u, y, list(gen.input_names), list(gen.output_names), f"{generator} (seed {seed})")
-        err.print(f"plot written to {plot}", markup=False)
+    if result.plot_path is not None:
+        err.print(f"plot written to {result.plot_path}", markup=False)
 
 
 def main() -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import platform
 from datetime import datetime, timezone
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,13 +16,17 @@ from .family import Family, Progress, no_progress
 from .model import FittedModel, Run, evaluate
 from .threads import fit_threads
 
+if TYPE_CHECKING:
+    from .api import ArraySpec
+    from .spec import Spec
+
 
 def family_rng(seed: int) -> np.random.Generator:
     """The generator handed to ``family.fit`` (independent of the noise stream)."""
     return np.random.default_rng(np.random.SeedSequence([seed, 0x66616D]))
 
 
-def _provenance(spec, ds: Dataset) -> dict[str, Any]:
+def _provenance(spec: Spec | ArraySpec, ds: Dataset) -> dict[str, Any]:
     import h5py
     import numba
     import scipy
@@ -41,7 +45,7 @@ def _provenance(spec, ds: Dataset) -> dict[str, Any]:
     }
 
 
-def preprocessor(spec, ds: Dataset) -> Preprocessor:
+def preprocessor(spec: Spec | ArraySpec, ds: Dataset) -> Preprocessor:
     """The spec's preprocessing (delay lines, derived inputs, detrending, scaling) fitted on ``ds``."""
     d = spec.data
     derived = [item.model_dump(mode="json", exclude_none=True) for item in d.derived_inputs]
@@ -52,16 +56,20 @@ def preprocessor(spec, ds: Dataset) -> Preprocessor:
         raise DynmodelError(str(exc), f"{spec.source}: data", "correct data.derived_inputs") from None
 
 
-def check_plan(spec, ds: Dataset):
+def check_plan(spec: Spec, ds: Dataset) -> Family | list[str]:
     """The spec's family, unfitted, after checking it can be fitted and scored on ``ds`` (its
     tune-in leaves scored samples in every split); one-line errors otherwise (``validate`` uses it).
     For ``family: auto``: the lines that describe the search's plan (nothing is fitted)."""
-    from .data.checks import check_warmup
-
     if spec.model.family == "auto":
         from .search.run import describe_plan
 
         return describe_plan(spec, ds)
+    return checked_family(spec, ds)
+
+
+def checked_family(spec: Spec, ds: Dataset) -> Family:
+    """The spec's family (not ``auto``), unfitted, checked as in :func:`check_plan`."""
+    from .data.checks import check_warmup
 
     family_cls = registry.family(spec.model.family)
     try:
@@ -73,18 +81,20 @@ def check_plan(spec, ds: Dataset):
     return family
 
 
-def fit_dataset(spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
+def fit_dataset(spec: Spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
     """Fit the spec's model on an already loaded dataset and evaluate it on every split (``family: auto``:
     search the families first, see :mod:`dynmodel.search`)."""
     if spec.model.family == "auto":
         from .search import fit_auto
 
         return fit_auto(spec, ds, progress)
-    family = check_plan(spec, ds)
+    family = checked_family(spec, ds)
     return fit_family(family, spec, ds, progress)
 
 
-def fit_family(family: Family, spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
+def fit_family(
+    family: Family, spec: Spec | ArraySpec, ds: Dataset, progress: Progress = no_progress
+) -> tuple[FittedModel, list[Run]]:
     """Fit a constructed ``family`` on ``ds`` with the spec's preprocessing, cost and seed, and evaluate
     it on every split (the engine path of ``dynmodel fit`` and of ``Family.fit`` on arrays), with one BLAS
     thread so that the result does not depend on the machine (see :mod:`dynmodel.threads`)."""
@@ -92,9 +102,12 @@ def fit_family(family: Family, spec, ds: Dataset, progress: Progress = no_progre
         return _fit_family(family, spec, ds, progress)
 
 
-def _fit_family(family: Family, spec, ds: Dataset, progress: Progress) -> tuple[FittedModel, list[Run]]:
+def _fit_family(
+    family: Family, spec: Spec | ArraySpec, ds: Dataset, progress: Progress
+) -> tuple[FittedModel, list[Run]]:
     pre = preprocessor(spec, ds)
     td = training_data(ds, pre)
+    assert spec.cost is not None, "the cost is set for every family but auto (which searches)"
     try:
         family.fit(td, spec.cost, family_rng(spec.seed), progress)
     except ValueError as exc:
@@ -119,7 +132,7 @@ def _fit_family(family: Family, spec, ds: Dataset, progress: Progress) -> tuple[
     return model, runs
 
 
-def fit(spec, progress: Progress = no_progress) -> FittedModel:
+def fit(spec: Spec, progress: Progress = no_progress) -> FittedModel:
     """Load the data of ``spec``, fit its model, evaluate free runs on every split."""
     progress("data", None, "loading")
     ds = load_dataset(spec)

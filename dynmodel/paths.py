@@ -27,9 +27,12 @@ import re
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Union
+from typing import TYPE_CHECKING, Any, Union
 
 from .errors import OutputError
+
+if TYPE_CHECKING:
+    from .spec import Spec
 
 #: the kinds of output a command writes
 KINDS = ("model", "csv", "json", "plot", "report", "yaml")
@@ -219,7 +222,7 @@ def _same_file(a: Path, b: Path) -> bool:
         return os.path.abspath(a) == os.path.abspath(b)
 
 
-def spec_inputs(spec: Any, spec_path: PathLike | None = None) -> dict[str, list[Path]]:
+def spec_inputs(spec: Spec, spec_path: PathLike | None = None) -> dict[str, list[Path]]:
     """The files a spec makes a command read: the spec itself and every data path (main source,
     separate validation / test sources, and any other section holding a ``path``)."""
     roles: dict[str, list[Path]] = {}

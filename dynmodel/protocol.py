@@ -14,10 +14,14 @@ The metrics keep the flat shape ``{split key: entry}`` with keys ``train``, ``va
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .data.dataset import Dataset
 from .errors import SpecError
+
+if TYPE_CHECKING:
+    from .api import ArraySpec
+    from .spec import Spec
 
 
 def allowed_warmup(ds: Dataset) -> dict[str, int]:
@@ -48,7 +52,7 @@ def check_warmup(family: Any, ds: Dataset, source: str) -> None:
             )
 
 
-def units_of(spec: Any, ds: Dataset) -> dict[str, tuple[float, str]]:
+def units_of(spec: Spec | ArraySpec, ds: Dataset) -> dict[str, tuple[float, str]]:
     """Reporting units per output: the spec's ``evaluation.units`` over the source's own."""
     units = dict(ds.units)
     units.update({name: (u.scale, u.name) for name, u in spec.evaluation.units.items()})

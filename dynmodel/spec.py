@@ -28,6 +28,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from typing_extensions import Self
 
 from . import registry
 from .errors import SpecError
@@ -428,21 +429,120 @@ def _generator_data_model(name: str, gen: Any) -> type[BaseModel]:
     return model
 
 
-def _model_spec_model(name: str, fam: Any) -> type[BaseModel]:
+def _model_spec_model(name: str, fam: Any) -> type[ModelChoice]:
     params_model = fam.Params
     tag: Any = Literal[name]  # a type built at run time (typed Any: type checkers cannot follow it)
     return create_model(
         f"ModelSpec_{name.replace('-', '_')}",
-        __base__=StrictModel,
+        __base__=ModelChoice,
         __doc__=getattr(fam, "description", None),
         family=(tag, ...),
         params=(params_model, Field(default_factory=params_model)),
     )
 
 
+class ModelChoice(StrictModel):
+    """The ``model`` section: a family and its validated params. Each installed family (and ``auto``)
+    gets its own subclass whose ``family`` is that family's name and whose ``params`` are its own
+    pydantic model (see :func:`spec_model`)."""
+
+    family: str
+    params: Any = None
+
+
+def _auto_model() -> ModelChoice:
+    from .search.params import auto_model_spec
+
+    return auto_model_spec()(family="auto")
+
+
+class Spec(StrictModel):
+    """A dynmodel experiment: data, model family, cost, evaluation."""
+
+    name: str = Field("model", description="experiment name, used for the default output file")
+    data: DataCommon
+    model: ModelChoice = Field(
+        default_factory=_auto_model,
+        description="the model family and its params; left out: family auto (search every family)",
+    )
+    cost: Optional[Literal["mse1", "mse_inf"]] = Field(
+        None,
+        description="mse1: one-step error; mse_inf: free-running error; default: the family's own "
+        "(narx: mse_inf, the networks: mse1)",
+    )
+    evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec)
+    seed: int = Field(0, ge=0, description="seed of every random choice in fitting (networks, noise)")
+    output: Optional[str] = Field(None, description="model file (HDF5); default <name>.h5 next to the spec")
+
+    _base_dir: Path = PrivateAttr(default_factory=Path.cwd)
+    _source: str = PrivateAttr(default="<spec>")
+
+    # ``Spec`` is the type every spec is an instance of; its ``data`` and ``model`` are typed by their
+    # common bases. The class that validates (data sources and families of the installed plugins as
+    # discriminated unions) is the subclass :func:`spec_model` builds: validating through ``Spec``
+    # itself goes there, so an unknown family or data key is never accepted by the generic types.
+
+    def __init__(self, **data: Any) -> None:
+        if type(self) is Spec:
+            raise TypeError(
+                "dynmodel.spec.Spec is the common base of specs: build one with Spec.model_validate(mapping), "
+                "dynmodel.validate_spec(mapping) or dynmodel.load_spec(path)"
+            )
+        super().__init__(**data)
+
+    @classmethod
+    def model_validate(cls, obj: Any, *args: Any, **kwargs: Any) -> Self:
+        """Validate ``obj`` against the installed plugins (on ``Spec`` itself: through :func:`spec_model`)."""
+        if cls is Spec:
+            return cast(Self, spec_model().model_validate(obj, *args, **kwargs))
+        return super().model_validate(obj, *args, **kwargs)
+
+    @classmethod
+    def model_json_schema(cls, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """The JSON Schema (on ``Spec`` itself: with every installed family's and generator's parameters)."""
+        if cls is Spec:
+            return spec_model().model_json_schema(*args, **kwargs)
+        return super().model_json_schema(*args, **kwargs)
+
+    @model_validator(mode="after")
+    def _family_cost(self) -> Spec:
+        if self.cost is None and self.model.family != "auto":  # auto: each candidate its family's own
+            self.cost = getattr(registry.families().get(self.model.family), "default_cost", "mse1")
+        return self
+
+    @property
+    def base_dir(self) -> Path:
+        return self._base_dir
+
+    @property
+    def source(self) -> str:
+        return self._source
+
+    def resolve_path(self, p: str) -> Path:
+        path = Path(p).expanduser()
+        return path if path.is_absolute() else (self._base_dir / path)
+
+    def output_path(self) -> Path:
+        return self.resolve_path(self.output or f"{self.name}.h5")
+
+    def resolved(self) -> dict[str, Any]:
+        """The full spec with defaults filled in and data paths made absolute."""
+        d = self.model_dump(mode="json")
+        test = d["data"].get("test")
+        tests = [t for t in test if isinstance(t, dict)] if isinstance(test, list) else [test or {}]
+        for section in [d["data"], *tests, d["data"].get("validation") or {}]:
+            if section.get("path") is not None:
+                section["path"] = _resolve_paths(section["path"], self.resolve_path)
+        if isinstance(d["data"].get("root"), str):
+            d["data"]["root"] = str(self.resolve_path(d["data"]["root"]))
+        d["output"] = str(self.output_path())
+        return d
+
+
 @cache
-def spec_model() -> type[BaseModel]:
-    """The Spec pydantic model for the installed plugins."""
+def spec_model() -> type[Spec]:
+    """The subclass of :class:`Spec` that validates specs for the installed plugins: ``data`` a union
+    of the file, generator and benchmark sources, ``model`` a union keyed on ``family``."""
     fams = registry.families()
     gens = registry.sources()
     FileData.source_tag = property(lambda self: "file")  # type: ignore[attr-defined]
@@ -450,71 +550,28 @@ def spec_model() -> type[BaseModel]:
     data_variants += [Annotated[_generator_data_model(n, g), Tag(f"generator:{n}")] for n, g in gens.items()]
     if registry.benchmarks():
         data_variants.append(Annotated[_benchmark_data_model(registry.benchmarks()), Tag("benchmark")])
-    DataSpec = Annotated[Union[tuple(data_variants)], Discriminator(_data_tag)]  # type: ignore[valid-type]
+    data_spec: Any = Annotated[Union[tuple(data_variants)], Discriminator(_data_tag)]
     model_variants = [_model_spec_model(n, f) for n, f in fams.items()]
     if not model_variants:
         raise SpecError("no model family is installed", fix="pip install -e . in the dynmodel folder")
     from .search.params import auto_model_spec
 
-    AutoSpec = auto_model_spec()  # family: auto, the model search (docs/auto.md)
-    ModelSpec = Annotated[Union[tuple([*model_variants, AutoSpec])], Field(discriminator="family")]  # type: ignore[valid-type]
-
-    class Spec(StrictModel):
-        """A dynmodel experiment: data, model family, cost, evaluation."""
-
-        name: str = Field("model", description="experiment name, used for the default output file")
-        data: DataSpec  # type: ignore[valid-type]
-        model: ModelSpec = Field(  # type: ignore[valid-type]
-            default_factory=lambda: AutoSpec(family="auto"),
-            description="the model family and its params; left out: family auto (search every family)",
-        )
-        cost: Optional[Literal["mse1", "mse_inf"]] = Field(
-            None,
-            description="mse1: one-step error; mse_inf: free-running error; default: the family's own "
-            "(narx: mse_inf, the networks: mse1)",
-        )
-        evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec)
-        seed: int = Field(0, ge=0, description="seed of every random choice in fitting (networks, noise)")
-        output: Optional[str] = Field(None, description="model file (HDF5); default <name>.h5 next to the spec")
-
-        _base_dir: Path = PrivateAttr(default_factory=Path.cwd)
-        _source: str = PrivateAttr(default="<spec>")
-
-        @model_validator(mode="after")
-        def _family_cost(self):
-            if self.cost is None and self.model.family != "auto":  # type: ignore[attr-defined]  # auto: each candidate its family's own
-                self.cost = getattr(fams.get(self.model.family), "default_cost", "mse1")  # type: ignore[attr-defined]
-            return self
-
-        @property
-        def base_dir(self) -> Path:
-            return self._base_dir
-
-        @property
-        def source(self) -> str:
-            return self._source
-
-        def resolve_path(self, p: str) -> Path:
-            path = Path(p).expanduser()
-            return path if path.is_absolute() else (self._base_dir / path)
-
-        def output_path(self) -> Path:
-            return self.resolve_path(self.output or f"{self.name}.h5")
-
-        def resolved(self) -> dict[str, Any]:
-            """The full spec with defaults filled in and data paths made absolute."""
-            d = self.model_dump(mode="json")
-            test = d["data"].get("test")
-            tests = [t for t in test if isinstance(t, dict)] if isinstance(test, list) else [test or {}]
-            for section in [d["data"], *tests, d["data"].get("validation") or {}]:
-                if section.get("path") is not None:
-                    section["path"] = _resolve_paths(section["path"], self.resolve_path)
-            if isinstance(d["data"].get("root"), str):
-                d["data"]["root"] = str(self.resolve_path(d["data"]["root"]))
-            d["output"] = str(self.output_path())
-            return d
-
-    return Spec
+    auto_spec = auto_model_spec()  # family: auto, the model search (docs/auto.md)
+    model_spec: Any = Annotated[Union[tuple([*model_variants, auto_spec])], Field(discriminator="family")]
+    return create_model(
+        "Spec",
+        __base__=Spec,
+        __doc__=Spec.__doc__,
+        __module__=__name__,
+        data=(data_spec, ...),
+        model=(
+            model_spec,
+            Field(
+                default_factory=lambda: auto_spec(family="auto"),
+                description="the model family and its params; left out: family auto (search every family)",
+            ),
+        ),
+    )
 
 
 def _resolve_paths(p: Any, resolve) -> Any:
@@ -602,7 +659,8 @@ def _is_member_tag(p: Any) -> bool:
     """A union member's name in a pydantic error location (a model class, a tag of data.test), not a key."""
     if not isinstance(p, str):
         return False
-    models = {c.__name__ for c in StrictModel.__subclasses__()} | {"TestSource", "FileData"}
+    models = {c.__name__ for c in [*StrictModel.__subclasses__(), *ModelChoice.__subclasses__()]}
+    models |= {"TestSource", "FileData"}
     return p in models or p in _UNION_TAGS or p in ("int", "float", "str") or p.startswith(("list[", "constrained-"))
 
 
@@ -772,7 +830,7 @@ def _precheck_benchmark(data: dict[str, Any], source: str) -> None:
             )
 
 
-def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | None = None):
+def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | None = None) -> Spec:
     """Validate a spec mapping; raises SpecError with one line on the first problem."""
     _precheck_plugins(raw, source)
     if isinstance(raw.get("data"), dict) and not ({"path", "generator", "benchmark"} & set(raw["data"])):
@@ -785,8 +843,8 @@ def validate_spec(raw: dict[str, Any], source: str = "<spec>", base_dir: Path | 
         spec = spec_model().model_validate(raw)
     except ValidationError as err:
         raise format_validation_error(err, source) from None
-    spec._base_dir = (base_dir or Path.cwd()).resolve()  # type: ignore[attr-defined]  # Spec: built in spec_model()
-    spec._source = source  # type: ignore[attr-defined]
+    spec._base_dir = (base_dir or Path.cwd()).resolve()
+    spec._source = source
     return spec
 
 
@@ -801,7 +859,7 @@ def read_spec_text(p: Path) -> str:
         raise SpecError(exc.what, exc.where, exc.fix) from None
 
 
-def load_spec(path: str | Path):
+def load_spec(path: str | Path) -> Spec:
     """Load and validate a YAML spec file. Relative paths inside resolve against its folder."""
     p = Path(path)
     if not p.exists():

@@ -17,7 +17,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,6 +28,10 @@ from . import resample
 from .checks import check_signals
 from .finite import check_finite
 from .readers import read_columns
+
+if TYPE_CHECKING:
+    from ..api import ArraySpec
+    from ..spec import Spec
 
 Range = tuple[int, int, int]  # (recording index, start, stop)
 _SPLIT_PREFIX = re.compile(r"^(validation|test(:[A-Za-z][A-Za-z0-9_-]*)?):")
@@ -529,7 +533,7 @@ def _own_runs(recordings: list[Recording], ranges: dict[str, list[Range]], keys:
         ranges[key] = moved
 
 
-def _check_units(spec, out_names: list[str]) -> None:
+def _check_units(spec: Spec | ArraySpec, out_names: list[str]) -> None:
     for name in spec.evaluation.units:
         if name not in out_names:
             raise SpecError(
@@ -537,7 +541,7 @@ def _check_units(spec, out_names: list[str]) -> None:
             )
 
 
-def load_dataset(spec, sources: Mapping[str, LoadedSource] | None = None) -> Dataset:
+def load_dataset(spec: Spec | ArraySpec, sources: Mapping[str, LoadedSource] | None = None) -> Dataset:
     """Read or generate every recording of ``spec.data`` and lay out the splits.
 
     ``sources`` replaces the reading with recordings already in memory (the Python API's arrays):

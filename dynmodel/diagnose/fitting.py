@@ -15,7 +15,7 @@ from ..data import load_dataset
 from ..data.dataset import Dataset
 from ..family import Progress, no_progress
 from ..model import FittedModel, Run
-from ..spec import validate_spec
+from ..spec import Spec, validate_spec
 
 #: data keys that only change the preprocessing, not the loaded recordings
 PREPROCESSING_KEYS = ("delay_lines", "derived_inputs", "detrend", "scaling")
@@ -72,7 +72,7 @@ class Fitter:
             self._references[key] = references(ds)
         return self._references[key]
 
-    def _data_key(self, spec) -> str:
+    def _data_key(self, spec: Spec) -> str:
         data = spec.data.model_dump(mode="json")
         for key in PREPROCESSING_KEYS:
             data.pop(key, None)

@@ -13,13 +13,16 @@ import contextlib
 import threading
 from collections.abc import Iterator
 from contextvars import ContextVar
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..data.dataset import Dataset
 from ..errors import DynmodelError, Interrupted
 from ..family import Progress, no_progress
 from .params import AUTO, AutoParams, searchable_families
 from .space import Candidate, Found, SearchContext
+
+if TYPE_CHECKING:
+    from ..spec import Spec
 
 __all__ = [
     "AUTO",
@@ -65,7 +68,7 @@ def _executor(opts: dict[str, Any]):
     return make_executor(opts.get("workers"), opts.get("scheduler")), True
 
 
-def fit_auto(spec, ds: Dataset, progress: Progress = no_progress):
+def fit_auto(spec: Spec, ds: Dataset, progress: Progress = no_progress):
     """Search, then return ``(model, runs)`` like :func:`dynmodel.engine.fit_dataset`: the winner refitted or
     kept, evaluated on every split of ``ds`` with the spec's evaluation settings, ``model.search`` the record.
     Ctrl-C keeps the best model so far (the record says it was interrupted)."""

@@ -76,12 +76,12 @@ def auto_model_spec():
     """The spec model of ``model: {family: auto, params: ...}``."""
     from pydantic import create_model
 
-    from ..spec import StrictModel
+    from ..spec import ModelChoice
 
     tag: Any = Literal["auto"]  # typed Any: the field's type, not an annotation to check
     return create_model(
         "ModelSpec_auto",
-        __base__=StrictModel,
+        __base__=ModelChoice,
         __doc__="search candidate models of every family and keep the best on validation (docs/auto.md)",
         family=(tag, ...),
         params=(AutoParams, Field(default_factory=AutoParams)),

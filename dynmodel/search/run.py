@@ -24,7 +24,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,6 +41,9 @@ from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
 from .views import Layout, possible_folds, possible_recording_folds
 from .worker import Task, TaskResult, run_task
+
+if TYPE_CHECKING:
+    from ..spec import Spec
 
 #: training samples of the screening layout (longer training splits are cut to their last samples)
 SCREEN_SAMPLES = 12000
@@ -145,7 +148,9 @@ def _in_worker() -> bool:
     return False
 
 
-def context(spec, ds: Dataset, params: AutoParams, written_cost: str | None) -> tuple[SearchContext, str, str | None]:
+def context(
+    spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | None
+) -> tuple[SearchContext, str, str | None]:
     """The search context, the layout kind ('holdout', 'folds' or 'recordings') and why the validation is
     short. Several recordings (three or more with fitting data): each left out in turn ('recordings')."""
     n_train, n_val = ds.n_scored("train"), ds.n_scored("validation") if ds.ranges.get("validation") else 0
@@ -741,7 +746,7 @@ class Search:
         }
 
 
-def describe_plan(spec, ds: Dataset) -> list[str]:
+def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
     """What ``dynmodel validate`` says about an auto spec: the families, the budget, the layout, the
     protocol limits and the starting candidates (nothing is fitted)."""
     params: AutoParams = spec.model.params

@@ -23,10 +23,14 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..batch import ModelArrays, PointResult, Variant, _one_line, cached_dataset
 from .views import Layout, view
+
+if TYPE_CHECKING:
+    from ..data.dataset import Dataset
+    from ..spec import Spec
 
 
 @dataclass(frozen=True)
@@ -108,7 +112,7 @@ def validation_moments(model, ds, runs) -> dict[str, Any] | None:
     }
 
 
-def _fit(task: Task, spec, ds, keep_model: bool, result: TaskResult) -> None:
+def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
     from .. import engine, protocol
     from ..usefulness import input_dependence
     from .checks import band_checks, complexity
@@ -146,7 +150,7 @@ def _reference(task: Task, ds, result: TaskResult) -> None:
     result.status = "ok"
 
 
-def _diagnose(task: Task, spec, ds, result: TaskResult) -> None:
+def _diagnose(task: Task, spec: Spec, ds: Dataset, result: TaskResult) -> None:
     from .. import engine
     from ..diagnose.detector import Settings
     from ..diagnose.fitting import Fit, Fitter

@@ -22,7 +22,7 @@ from .. import __version__
 from ..batch import ModelArrays, PointResult, Variant, cached_dataset, data_key, run_specs
 from ..errors import SpecError
 from ..family import Progress, no_progress
-from ..spec import load_spec, parse_yaml, validate_spec
+from ..spec import Spec, load_spec, parse_yaml, validate_spec
 from .folder import SweepFolder, write_atomic
 from .grid import Grid, Point, build_points, identity, load_grid, parse_grid
 from .results import SweepResult, choose_sort, score
@@ -47,7 +47,7 @@ class Plan:
     stochastic: bool
 
 
-def plan(spec: Any, grid: Any) -> Plan:
+def plan(spec: Spec | Mapping[str, Any] | str | Path, grid: Any) -> Plan:
     """Validate a spec (path, mapping or loaded spec) and a grid (path or mapping) into a Plan;
     SpecError (one line) on the first problem."""
     if isinstance(spec, (str, Path)):
@@ -60,7 +60,7 @@ def plan(spec: Any, grid: Any) -> Plan:
         raw = copy.deepcopy(dict(spec))
         source, base_dir = "<spec>", Path.cwd()
         loaded = validate_spec(raw, source, base_dir)
-    elif hasattr(spec, "resolved"):
+    elif isinstance(spec, Spec):
         loaded = spec
         raw = spec.resolved()
         source, base_dir = spec.source, spec.base_dir
