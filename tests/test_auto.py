@@ -172,6 +172,7 @@ def test_nan_test_outputs_give_the_same_search_and_model(tmp_path):
 
 class RunawayParams(FamilyParams):
     runaway: bool = Field(False, description="exact fit whose output runs away beyond the training inputs")
+    shrink: float = Field(0.1, description="bounded fit: the slope shrunk by this fraction")
 
 
 class Runaway(Family):
@@ -183,8 +184,8 @@ class Runaway(Family):
     Params = RunawayParams
     stochastic = False
 
-    def __init__(self, *, runaway: bool = False) -> None:
-        super().__init__(runaway=runaway)
+    def __init__(self, *, runaway: bool = False, shrink: float = 0.1) -> None:
+        super().__init__(runaway=runaway, shrink=shrink)
 
     def fit(self, data, cost="mse1", rng=None, progress=no_progress):
         u = data.stack("train", [s.u for s in data.series])
@@ -192,7 +193,7 @@ class Runaway(Family):
         coef, *_ = np.linalg.lstsq(np.column_stack([u, np.ones(len(u))]), y, rcond=None)
         self.W_, self.w0_ = coef[:-1], coef[-1]
         if not self.params.runaway:
-            self.W_ = 0.9 * self.W_
+            self.W_ = (1.0 - self.params.shrink) * self.W_
         self.umax_ = float(np.abs(u).max())
         return self
 
@@ -211,14 +212,15 @@ class Runaway(Family):
         m.W_, m.w0_, m.umax_ = np.asarray(arrays["W"]), np.asarray(arrays["w0"]), float(arrays["umax"][0])
         return m
 
+    #: the starting candidates (a test may replace them)
+    SPACE = (
+        Candidate("runaway", {"runaway": True}, "exact, runs away beyond the training inputs", work=0.01),
+        Candidate("runaway", {"runaway": False}, "shrunk slope, bounded", work=0.01),
+    )
+
     @classmethod
     def search_space(cls, ctx, around=None):
-        if around is not None:
-            return []
-        return [
-            Candidate("runaway", {"runaway": True}, "exact, runs away beyond the training inputs", work=0.01),
-            Candidate("runaway", {"runaway": False}, "shrunk slope, bounded", work=0.01),
-        ]
+        return [] if around is not None else list(cls.SPACE)
 
 
 @pytest.fixture
@@ -243,6 +245,56 @@ def test_a_candidate_that_diverges_on_a_test_input_is_rejected(tmp_path, runaway
     assert by[True]["levels"]["final"]["score"] < by[False]["levels"]["final"]["score"]  # validates better ...
     assert by[True]["verdict"].startswith("rejected: leaves the output band on the test input")  # ... but runs away
     assert model.family.params.runaway is False and by[False]["verdict"] == "chosen"
+
+
+def test_a_candidate_whose_cheap_screening_variant_runs_away_is_fitted_in_full(tmp_path, runaway_family, monkeypatch):
+    """A screening variant that leaves the band (least-squares weights, one seed) does not condemn a candidate
+    that validated best: its full variant is fitted and checked on its own (and wins when it stays inside)."""
+    monkeypatch.setattr(
+        Runaway,
+        "SPACE",
+        (
+            Candidate(
+                "runaway",
+                {"shrink": 0.0},
+                "exact and bounded, screened as the runaway",
+                screen={"runaway": True},
+                work=0.01,
+            ),
+            Candidate("runaway", {"shrink": 0.1}, "shrunk slope, bounded", work=0.01),
+        ),
+    )
+    rng = np.random.default_rng(3)
+    u = rng.uniform(-1, 1, 2000)
+    ut = rng.uniform(-1.6, 1.6, 600)  # beyond the runaway's 1.2 x, inside the band for the exact slope
+    write_csv(tmp_path / "train.csv", {"u": u, "y": 2 * u + 0.01 * rng.standard_normal(2000)})
+    write_csv(tmp_path / "test.csv", {"u": ut, "y": np.full(600, np.nan)})
+    model, _ = _fit(_raw(families=["runaway"]), tmp_path)
+    by = {c["params"]["shrink"]: c for c in model.search["candidates"]}
+    screened = by[0.0]["levels"]["screen"]
+    assert not screened["band_ok"] and screened["score"] < by[0.1]["levels"]["screen"]["score"]
+    assert "fitted in full although its screening fit left the output band" in by[0.0]["origin"]
+    assert by[0.0]["levels"]["final"]["band_ok"] and by[0.0]["verdict"] == "chosen"
+    assert model.family.params.shrink == 0.0 and model.family.params.runaway is False
+
+
+def test_fold_models_are_judged_like_seeds():
+    """Blocked cross-validation: a configuration is rejected when half of its fold models or more leave the
+    band; one model of five trained on part of a short record may. Recordings left out (three): every one."""
+    from dynmodel.search.select import summarize
+    from dynmodel.search.worker import TaskResult
+
+    def folds(bad: int, n: int = 5) -> list[TaskResult]:
+        out = []
+        for i in range(n):
+            r = TaskResult(f"k|{i}", "ok", seed=0, score=1.0 + i)
+            r.checks = {"ok": i >= bad}
+            out.append(r)
+        return out
+
+    assert summarize(folds(0)).ok and summarize(folds(1)).ok and summarize(folds(2)).ok
+    assert not summarize(folds(3)).ok
+    assert summarize(folds(0, 3)).ok and not summarize(folds(1, 3)).ok
 
 
 def test_the_third_party_arx_family_takes_part(tmp_path):
@@ -311,6 +363,24 @@ def test_folds_validate_every_training_and_validation_sample_once(tmp_path):
         assert n_train == 3600 - sum(b - a for _, a, b in v.ranges["validation"])
     u = np.sort(np.concatenate(seen))
     np.testing.assert_array_equal(u, np.sort(ds.recordings[0].u[:, 0]))
+
+
+def test_the_first_block_only_trains_unless_the_validation_has_a_window(tmp_path):
+    """Without a validation window the free run starts in the first block: a network would be scored on its
+    start-up transient there, which no split following the training split shows; so it only trains."""
+    from dynmodel.search.views import validated_folds
+
+    _data(tmp_path)
+    ds = load_dataset(validate_spec(_raw(), "<test>", tmp_path))
+    assert validated_folds(ds, 5) == [1, 2, 3, 4]
+    windowed = _raw()
+    windowed["data"]["init_window"] = {"validation": WINDOW, "test": WINDOW}
+    assert validated_folds(load_dataset(validate_spec(windowed, "<test>", tmp_path)), 5) == [0, 1, 2, 3, 4]
+    short = _raw(budget=1, families=["narx"])
+    short["data"]["split"] = {"train": 0.95, "validation": 0.05}  # 180 validation samples: cross-validated
+    rec, _ = _fit(short, tmp_path)
+    assert rec.search["mode"] == "folds"
+    assert [lay["fold"] for lay in rec.search["layouts"]["final"]] == [1, 2, 3, 4]
 
 
 def test_the_screening_view_keeps_the_last_training_samples(tmp_path):

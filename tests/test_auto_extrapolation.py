@@ -64,6 +64,11 @@ def _screened(record: dict) -> int:
     )
 
 
+def _second_chances(record: dict) -> int:
+    """Candidates fitted in full although their screening fit left the band (they validated better)."""
+    return sum(1 for c in record["candidates"] if "screening fit left the output band" in c["origin"])
+
+
 def test_a_test_input_beyond_the_training_range_gets_several_full_fits(tmp_path):
     inside, beyond = tmp_path / "inside", tmp_path / "beyond"
     inside.mkdir()
@@ -72,7 +77,7 @@ def test_a_test_input_beyond_the_training_range_gets_several_full_fits(tmp_path)
     wide = _search(beyond, 1.4)  # ... leaves it (by far more than 5 % of its width)
     assert small["context"]["excursion"] <= 0.05 < wide["context"]["excursion"]
     # this budget leaves a single full fit when the test input stays inside the range ...
-    assert _full(small) == 1
+    assert _full(small) - _second_chances(small) == 1
     # ... and the best survivors are all fitted in full when it leaves it: the choice is made among them
-    assert _full(wide) == min(SURVIVORS, _screened(wide)) >= 2
+    assert _full(wide) - _second_chances(wide) == min(SURVIVORS, _screened(wide)) >= 2
     assert any("leave the training range" in why for why in wide["cautious"])

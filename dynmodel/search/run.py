@@ -39,7 +39,7 @@ from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
-from .views import Layout, possible_folds, possible_recording_folds
+from .views import Layout, possible_folds, possible_recording_folds, validated_folds
 from .worker import Task, TaskResult, run_task
 
 if TYPE_CHECKING:
@@ -214,12 +214,13 @@ class Search:
         folds = {"folds": possible_folds(ds, FOLDS), "recordings": possible_recording_folds(ds)}.get(self.mode, 0)
         self.folds = folds
         n_screen = min(SCREEN_SAMPLES, self.ctx.n_train)
+        used = validated_folds(ds, folds) if self.mode == "folds" else list(range(folds))
         self.screen_layouts = (
-            [Layout(kind, fold=i, folds=folds) for i in range(folds)]
+            [Layout(kind, fold=i, folds=folds) for i in used]
             if folds
             else [Layout("screen", samples=n_screen) if n_screen < self.ctx.n_train else Layout("full")]
         )
-        self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in range(folds)] if folds else [Layout("full")]
+        self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used] if folds else [Layout("full")]
         self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
         self.base = self._base_spec()
 
@@ -759,9 +760,10 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         f"{params.seeds} seed(s) per random configuration"
     ]
     if mode == "folds":
+        k = possible_folds(ds, FOLDS)
+        first = "" if len(validated_folds(ds, k)) == k else "; the first block, where the free run starts, only trains"
         lines.append(
-            f"ranking: blocked cross-validation in {possible_folds(ds, FOLDS)} blocks of the training and "
-            f"validation samples ({short})"
+            f"ranking: blocked cross-validation in {k} blocks of the training and validation samples ({short}){first}"
         )
     elif mode == "recordings":
         lines.append(

@@ -8,8 +8,8 @@ unlucky one cannot sink it). The seed whose score is that median gives the model
 The **choice** (:func:`choose`), in order:
 
 1. a candidate whose free run leaves the output band on any split's *input* (:mod:`.checks`; for a random
-   family, on at least half of its seeds; for cross-validation folds, with more than one fold model in
-   :data:`FOLD_FAILURES`) is rejected, whatever its validation error (the model that is kept is checked on
+   family, on at least half of its seeds; for the blocked cross-validation, with half of its fold models or
+   more) is rejected, whatever its validation error (the model that is kept is checked on
    its own as well);
 2. among the rest, the lowest score is the reference point; a model that ignores its input is set aside
    when one that uses it scores within :data:`ABOUT_AS_WELL` of that;
@@ -42,10 +42,11 @@ EXTRAPOLATION = 0.05
 IGNORES_INPUT = 0.01
 #: a validation NMSE (%) from which even the best model is called poor
 POOR = 50.0
-#: of the models of one seed's cross-validation folds, at most one in this many may leave the band (one of
-#: five: a model trained on four fifths of a short record can diverge where the model fitted on all of it
-#: does not; the model that is kept is always checked on its own, strictly)
-FOLD_FAILURES = 4
+#: with at least this many cross-validation folds, fewer than half of one seed's fold models may leave the
+#: band (as for seeds: a model trained on four fifths of a short record can diverge where the model fitted on
+#: all of it does not; the model that is kept is always checked on its own, strictly). With fewer folds (the
+#: recordings left out in turn, each its own operating condition) every fold model must stay inside
+MIN_FOLDS_TOLERANT = 4
 
 
 @dataclass
@@ -127,7 +128,8 @@ def summarize(results: list[Any]) -> Summary | None:
         usable = all(v is not None and math.isfinite(v) and r.status == "ok" for v, r in zip(vals, rs))
         scores[seed] = pooled(rs) if usable else math.inf
         failed = sum(1 for r in rs if not r.checks.get("ok", False))
-        ok_seeds[seed] = failed <= len(rs) // FOLD_FAILURES and usable
+        allowed = (len(rs) - 1) // 2 if len(rs) >= MIN_FOLDS_TOLERANT else 0
+        ok_seeds[seed] = failed <= allowed and usable
     score, median = _median_seed(scores)
     ok = sum(ok_seeds.values()) * 2 >= len(ok_seeds) and (median is None or ok_seeds.get(median, False))
     chosen = by_seed.get(median, fits) if median is not None else fits

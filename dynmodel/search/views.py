@@ -13,6 +13,7 @@ so a fit inside the search cannot read a test output: the search's checks on tes
   validates on block ``i`` of every span and trains on the others. A validation block continues the free
   run of its recording (as a validation split that follows the training split does); when the spec's
   validation split has an initialization window, the block is a recording of its own with that window;
+  without one the first block is never validated (:func:`validated_folds`);
 * ``recording i of k``: leave one recording out, when the training and validation samples come from
   :data:`MIN_RECORDINGS` or more recordings (runs at other operating conditions: other pressures, loads,
   amplitudes). Fold ``i`` validates on all of recording ``i``'s training and validation samples, trained
@@ -151,6 +152,18 @@ def possible_folds(ds: Dataset, wanted: int, min_block: int = MIN_BLOCK) -> int:
         if longest // k - ds.transient - window >= min_block:
             return k
     return 0
+
+
+def validated_folds(ds: Dataset, k: int) -> list[int]:
+    """The folds of ``k`` that are validated. Without a validation window, not the first: its block is where
+    the free run of the recording starts, so a model with an internal state (a network) would be scored on
+    its start-up transient, which a validation or test split that follows the training split never shows
+    (on a short seal-friction record that one block made a network look five times worse than it is). The
+    first block is then always training. With a window every block is a run of its own that starts from
+    it, as the protocol's test sets do, and every fold is validated."""
+    if _windows(ds).get("validation", 0) or k < 2:
+        return list(range(k))
+    return list(range(1, k))
 
 
 def fold(ds: Dataset, i: int, k: int) -> Dataset:
