@@ -297,6 +297,27 @@ def test_fold_models_are_judged_like_seeds():
     assert summarize(folds(0, 3)).ok and not summarize(folds(1, 3)).ok
 
 
+def test_recordings_left_out_are_each_scored_against_their_own_variance():
+    """Three recordings at other levels (pressures): pooling them with the variance of all outputs together
+    would credit a model for the level spread; each is scored against its own variance, as a test is."""
+    from dynmodel.search.select import pooled
+    from dynmodel.search.worker import TaskResult
+
+    rng = np.random.default_rng(0)
+    results = []
+    for i, level in enumerate((10.0, 50.0, 90.0)):
+        y = level + rng.standard_normal(500)
+        err = 0.5 * rng.standard_normal(500)  # a quarter of each recording's own variance
+        r = TaskResult(f"k|{i}", "ok", seed=0, score=1.0)
+        r.moments = {"n": 500, "sse": [float((err**2).sum())], "sum": [float(y.sum())], "sumsq": [float((y**2).sum())]}
+        results.append(r)
+    folds = pooled(results)  # blocks of one recording: the variance of all of them together
+    for r in results:
+        r.layout = {"kind": "recording"}
+    assert folds < 1.0  # the level spread (std ~33) swamps the within-recording variance (1)
+    assert 22.0 < pooled(results) < 28.0  # each against its own: about 25 %
+
+
 def test_the_third_party_arx_family_takes_part(tmp_path):
     pytest.importorskip("dynmodel_arx")
     _data(tmp_path)

@@ -99,7 +99,9 @@ def pooled(results: list[Any]) -> float:
     """One validation NMSE (%) of several folds: their squared errors summed and divided by the variance of
     every fold's measured validation output taken together (mean over outputs), as if the folds were one
     validation split. A fold of small output variance then weighs by its error, not by its own variance (per
-    fold NMSEs of a slow system can be huge on a quiet block). One result: its own score."""
+    fold NMSEs of a slow system can be huge on a quiet block). Recordings left out in turn: divided by the sum
+    of each recording's own variance times its samples instead (their levels differ by operating point, a
+    spread no test recording is scored against). One result: its own score."""
     if len(results) == 1:
         return float(results[0].score)
     moments = [r.moments for r in results]
@@ -107,6 +109,13 @@ def pooled(results: list[Any]) -> float:
         return float(np.mean([r.score for r in results]))
     n = sum(m["n"] for m in moments)
     sse = np.sum([m["sse"] for m in moments], axis=0)
+    if all((r.layout or {}).get("kind") == "recording" for r in results):
+        # recordings at other operating points (pressures, loads) differ in level: the variance of all of
+        # them together is mostly that spread, which any model of the right level gets for free (on the
+        # seal data, an output-error model pooled 0.18 % and scored 8.6 % on a new pressure). Each recording
+        # is normalised by its own variance, as a test recording is: sum of errors / sum of n_i var_i
+        within = np.sum([np.asarray(m["sumsq"]) - np.asarray(m["sum"]) ** 2 / m["n"] for m in moments], axis=0)
+        return float(np.mean(100.0 * sse / np.maximum(within, np.finfo(float).tiny)))
     mean = np.sum([m["sum"] for m in moments], axis=0) / n
     var = np.sum([m["sumsq"] for m in moments], axis=0) / n - mean**2
     var = np.maximum(var, np.finfo(float).tiny)
