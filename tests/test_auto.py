@@ -402,6 +402,9 @@ def test_the_first_block_only_trains_unless_the_validation_has_a_window(tmp_path
     rec, _ = _fit(short, tmp_path)
     assert rec.search["mode"] == "folds"
     assert [lay["fold"] for lay in rec.search["layouts"]["final"]] == [1, 2, 3, 4]
+    from dynmodel.search.report import headline
+
+    assert "(cross-validated in 5 blocks, the first only training)" in headline(rec.search)
 
 
 def test_the_screening_view_keeps_the_last_training_samples(tmp_path):

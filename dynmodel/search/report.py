@@ -15,8 +15,14 @@ def headline(record: dict[str, Any]) -> str:
     """``search: 23 candidates of narx, esn (cross-validated in 5 blocks), 41 s; chose ...``."""
     cands = [c for c in record["candidates"] if c.get("levels")]
     families = sorted({c["family"] for c in cands})
+    validated = len((record.get("layouts") or {}).get("final") or [])
+    first = (
+        ", the first only training"
+        if record.get("mode") == "folds" and 0 < validated < (record.get("folds") or 0)
+        else ""
+    )
     how = {
-        "folds": f"cross-validated in {record.get('folds')} blocks",
+        "folds": f"cross-validated in {record.get('folds')} blocks{first}",
         "recordings": f"each of {record.get('folds')} recordings left out in turn",
     }.get(str(record.get("mode")), "validation split")
     budget = record.get("budget") or {}
