@@ -471,3 +471,8 @@ def write_text(path: PathLike, text: str) -> Path:
             os.unlink(tmp)
         raise
     return p
+
+
+def write_json(path: PathLike, payload: Any, allow_nan: bool = True) -> Path:
+    """``payload`` as indented JSON, written as :func:`write_text` writes (temporary file, rename)."""
+    return write_text(path, json.dumps(payload, indent=2, allow_nan=allow_nan) + "\n")

@@ -48,12 +48,11 @@ def run_control(
     ``generator:`` and ``params:``, or a spec; default: the model's training generator), with ``params``
     overrides (dotted keys; a mapping or ``key=value`` items), the model's force added from the switch on;
     the criteria are written to ``json_path`` and the tracking error to ``plot`` when given."""
-    import json
 
     from .. import control as ctl
     from .. import store
     from ..errors import SpecError
-    from ..paths import check_outputs, write_text
+    from ..paths import check_outputs, write_json
 
     settings = settings or Settings()
     if settings.hold not in ("linear", "zero"):
@@ -78,7 +77,7 @@ def run_control(
     report.plant.update({"generator": name, "params": resolved})
     result = ControlResult(model, model_file, name, the_plant, report, time.perf_counter() - t0)
     if json_file is not None:
-        write_text(json_file, json.dumps(result.to_json(), indent=2) + "\n")
+        write_json(json_file, result.to_json())
     if plot_file is not None:
         from ..plots import tracking_error
 

@@ -101,7 +101,7 @@ def fit_and_save(
     the spec's output), and write the ``json_path`` summary and the ``plot`` figure when given."""
     from .. import engine, store
     from ..data import load_dataset
-    from ..paths import check_outputs, spec_inputs, write_text
+    from ..paths import check_outputs, spec_inputs, write_json
     from ..search import search_options
     from ..spec import load_spec
     from ..usefulness import assess
@@ -131,9 +131,7 @@ def fit_and_save(
         store.save(model, target)
     result = FitResult(s, model, ds, runs, notes, target.resolve(), time.perf_counter() - t0, str(spec))
     if json_file is not None:
-        import json
-
-        write_text(json_file, json.dumps(result.to_json(), indent=2) + "\n")
+        write_json(json_file, result.to_json())
         result.json_path = json_file
     if plot_file is not None:
         plot_fit(plot_file, ds, runs, model, s.name)

@@ -113,11 +113,10 @@ class InspectResult:
 def inspect_model(model_path: str | Path, json_path: str | Path | None = None, force: bool = False) -> InspectResult:
     """``dynmodel inspect``: family, data, preprocessing, metrics, provenance of a model file; the summary
     is also written to ``json_path`` when given."""
-    import json
 
     from .. import store
     from ..inspection import describe
-    from ..paths import check_outputs, write_text
+    from ..paths import check_outputs, write_json
     from ..usefulness import assess, summary_line
 
     path = Path(model_path)
@@ -129,5 +128,5 @@ def inspect_model(model_path: str | Path, json_path: str | Path | None = None, f
         summary["search"] = {k: model.search.get(k) for k in ("winner", "winner_summary", "notes", "interrupted")}
     note = summary_line(assess(model), model.spec.get("spec_file") or model.provenance.get("spec_file"))
     if json_file is not None:
-        write_text(json_file, json.dumps(summary, indent=2) + "\n")
+        write_json(json_file, summary)
     return InspectResult(model, summary, note)

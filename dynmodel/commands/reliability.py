@@ -39,11 +39,10 @@ def check_reliability(
     4.4.1, 5.3.1) of a saved model, or of the registered test system ``system`` built from ``params``
     (a mapping, or ``key=value`` items); ``sines`` are extra drives (Sine or ``AMPLITUDE:OMEGA[:OFFSET]``);
     the report is also written to ``json_path``. ``result.report.exit_code``: 0 reliable, 1 otherwise."""
-    import json
 
     from .. import registry
     from ..errors import SpecError
-    from ..paths import check_outputs, write_text
+    from ..paths import check_outputs, write_json
     from ..reliability import check, check_model
     from ..spec import validation_summary
 
@@ -84,5 +83,5 @@ def check_reliability(
         source = {"model": str(model_file)}
     result = ReliabilityResult(report, source)
     if json_file is not None:
-        write_text(json_file, json.dumps(result.to_json(), indent=2) + "\n")
+        write_json(json_file, result.to_json())
     return result

@@ -25,9 +25,8 @@ def run_sweep(
     """``dynmodel sweep``: :func:`dynmodel.sweeps.sweep` into the folder ``out`` (default ``<name>-sweep``
     next to the spec), with ``json_path`` checked before any work and written at the end. Ctrl-C raises
     the KeyboardInterrupt with ``folder`` set (and ``result``: the points finished so far)."""
-    import json
 
-    from ..paths import check_outputs, write_text
+    from ..paths import check_outputs, write_json
     from ..sweeps import run as sweeps
 
     folder = Path(out) if out is not None else sweeps.default_out(spec)
@@ -48,5 +47,5 @@ def run_sweep(
         interrupted.folder = folder
         raise
     if json_path is not None:
-        write_text(json_path, json.dumps(result.to_json(), indent=2) + "\n")
+        write_json(json_path, result.to_json())
     return result

@@ -3,7 +3,6 @@ YAML (runnable with ``dynmodel fit``) and the JSON summary."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -38,9 +37,10 @@ def jsonable(obj: Any) -> Any:
 
 
 def write_json(result: Diagnosis, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(jsonable(result.to_json()), indent=2, allow_nan=False) + "\n")
-    return path
+    """The diagnosis as JSON (NaN and inf as null), through a temporary file and a rename."""
+    from ..paths import write_json as write_payload
+
+    return write_payload(path, jsonable(result.to_json()), allow_nan=False)
 
 
 def extended_spec(result: Diagnosis, folder: Path) -> dict[str, Any] | None:

@@ -42,11 +42,6 @@ EXTRAPOLATION = 0.05
 IGNORES_INPUT = 0.01
 #: a validation NMSE (%) from which even the best model is called poor
 POOR = 50.0
-#: with at least this many cross-validation folds, fewer than half of one seed's fold models may leave the
-#: band (as for seeds: a model trained on four fifths of a short record can diverge where the model fitted on
-#: all of it does not; the model that is kept is always checked on its own, strictly). With fewer folds (the
-#: recordings left out in turn, each its own operating condition) every fold model must stay inside
-MIN_FOLDS_TOLERANT = 4
 
 
 @dataclass
@@ -95,6 +90,12 @@ def _median_seed(scores: dict[int, float]) -> tuple[float, int | None]:
     return value, seed
 
 
+def _layout_kind(results: list[Any]) -> str | None:
+    """The layout kind (``fold``, ``recording``, ...) all ``results`` share, else None."""
+    kinds = {(r.layout or {}).get("kind") for r in results}
+    return kinds.pop() if len(kinds) == 1 else None
+
+
 def pooled(results: list[Any]) -> float:
     """One validation NMSE (%) of several folds: their squared errors summed and divided by the variance of
     every fold's measured validation output taken together (mean over outputs), as if the folds were one
@@ -109,7 +110,7 @@ def pooled(results: list[Any]) -> float:
         return float(np.mean([r.score for r in results]))
     n = sum(m["n"] for m in moments)
     sse = np.sum([m["sse"] for m in moments], axis=0)
-    if all((r.layout or {}).get("kind") == "recording" for r in results):
+    if _layout_kind(results) == "recording":
         # recordings at other operating points (pressures, loads) differ in level: the variance of all of
         # them together is mostly that spread, which any model of the right level gets for free (on the
         # seal data, an output-error model pooled 0.18 % and scored 8.6 % on a new pressure). Each recording
@@ -137,7 +138,10 @@ def summarize(results: list[Any]) -> Summary | None:
         usable = all(v is not None and math.isfinite(v) and r.status == "ok" for v, r in zip(vals, rs))
         scores[seed] = pooled(rs) if usable else math.inf
         failed = sum(1 for r in rs if not r.checks.get("ok", False))
-        allowed = (len(rs) - 1) // 2 if len(rs) >= MIN_FOLDS_TOLERANT else 0
+        # blocked cross-validation: fewer than half of the fold models may leave the band, as for seeds (a
+        # model trained on part of a short record can diverge where the one fitted on all of it does not; the
+        # kept model is checked on its own, strictly). Recordings left out, each its own operating point: none
+        allowed = (len(rs) - 1) // 2 if _layout_kind(rs) == "fold" else 0
         ok_seeds[seed] = failed <= allowed and usable
     score, median = _median_seed(scores)
     ok = sum(ok_seeds.values()) * 2 >= len(ok_seeds) and (median is None or ok_seeds.get(median, False))
