@@ -1,6 +1,6 @@
 """Is a fitted model of any use? A useless model is never silent.
 
-Three findings, each a :class:`Note` with what was measured and what to try:
+Four findings, each a :class:`Note` with what was measured and what to try:
 
 - ``diverged``: the free run left the divergence band on some split (see :mod:`dynmodel.model`);
 - ``poor``: a held-out split (validation, test, or any other non-training key such as ``test:<name>``)
@@ -9,7 +9,11 @@ Three findings, each a :class:`Note` with what was measured and what to try:
 - ``ignores-input``: replacing every input by its training mean changes the free run on the
   validation split (training when there is none) by less than :data:`INPUT_DEPENDENCE` of the
   measured output's variance, mean((y(u) - y(mean u))^2) / var(y): the model is (nearly) a constant
-  or an autonomous oscillator, whatever it scores.
+  or an autonomous oscillator, whatever it scores;
+- ``does-not-carry-over``: a test split's NMSE is at least :data:`CARRY_OVER_FACTOR` times the
+  validation NMSE and at least :data:`CARRY_OVER_FLOOR` percent: the model was chosen on data that do not
+  represent the test (other operating conditions, inputs beyond the training range, a drift), so its
+  validation figure says nothing of its use there.
 
 ``dynmodel fit`` prints them as one line; ``family: auto`` and ``dynmodel diagnose`` reuse
 :func:`assess` to rank or flag models.
@@ -31,13 +35,17 @@ if TYPE_CHECKING:
 POOR_NMSE = 90.0
 #: input dependence (fraction of the output variance) below which a model ignores its input
 INPUT_DEPENDENCE = 0.01
+#: a test NMSE at least this many times the validation NMSE ...
+CARRY_OVER_FACTOR = 10.0
+#: ... and at least this many percent: the validation does not represent the test data
+CARRY_OVER_FLOOR = 10.0
 
 
 @dataclass
 class Note:
     """One finding about a fitted model."""
 
-    kind: str  # "diverged" | "poor" | "ignores-input"
+    kind: str  # "diverged" | "poor" | "ignores-input" | "does-not-carry-over"
     split: str | None
     text: str  # what was measured, as a clause of a sentence
     value: float | None = None
@@ -130,6 +138,7 @@ def assess(
         if value >= POOR_NMSE or (ref is not None and value >= ref):
             worse = f", no better than the training mean's {ref:.3g} %" if ref is not None and value >= ref else ""
             notes.append(Note("poor", split, f"its {split} NMSE is {value:.3g} %{worse}", float(value)))
+    notes += carry_over(metrics)
     if ds is not None and bad is None:
         dep = input_dependence(model, ds, runs=runs)
         if dep is not None and dep < INPUT_DEPENDENCE:
@@ -143,6 +152,31 @@ def assess(
                 )
             )
     return notes
+
+
+def carry_over(metrics: Mapping[str, Any]) -> list[Note]:
+    """``does-not-carry-over`` notes: test splits (``test``, ``test:<name>``) whose NMSE is at least
+    :data:`CARRY_OVER_FACTOR` x the validation NMSE and at least :data:`CARRY_OVER_FLOOR` %."""
+    validation = (metrics.get("validation") or {}).get("nmse")
+    if validation is None or not np.isfinite(validation):
+        return []
+    out = []
+    for split, m in metrics.items():
+        value = (m or {}).get("nmse")
+        is_test = split == "test" or split.startswith("test:")
+        if not is_test or value is None or not np.isfinite(value):
+            continue
+        if value >= CARRY_OVER_FLOOR and value >= CARRY_OVER_FACTOR * validation:
+            out.append(
+                Note(
+                    "does-not-carry-over",
+                    split,
+                    f"its {split} NMSE ({value:.3g} %) is {value / max(validation, 1e-12):.0f} x its validation NMSE "
+                    f"({validation:.3g} %)",
+                    float(value),
+                )
+            )
+    return out
 
 
 def _auto_available() -> bool:
@@ -175,8 +209,30 @@ def what_to_try(spec_path: str | None = None, cost: str | None = None) -> str:
     return "try " + ", ".join(steps[:-1]) + " or " + steps[-1]
 
 
+#: what to try when the validation does not represent the test data
+CARRY_OVER_FIX = (
+    "validate on data like the test's (a validation split or recording that covers its operating conditions "
+    "and input range), record longer, or prefer a simpler model"
+)
+
+
 def summary_line(notes: list[Note], spec_path: str | None = None, cost: str | None = None) -> str | None:
-    """One line for the user: every finding but divergence (reported as an error of its own)."""
+    """One line for the user: every finding but divergence (reported as an error of its own). A model that
+    validates well but does not carry over to the test is said so apart from a model of little use."""
+    carry = [n for n in notes if n.kind == "does-not-carry-over"]
+    notes = [n for n in notes if n.kind != "does-not-carry-over"]
+    line = _useless_line(notes, spec_path, cost)
+    if carry and line is None:
+        return (
+            f"this model does not carry over to the test data: {'; '.join(n.text for n in carry)}, so the "
+            f"validation did not represent the test. Fix: {CARRY_OVER_FIX}"
+        )
+    if carry and line is not None:
+        return f"{line}; also, {'; '.join(n.text for n in carry)}: the validation did not represent the test"
+    return line
+
+
+def _useless_line(notes: list[Note], spec_path: str | None, cost: str | None) -> str | None:
     poor = [n for n in notes if n.kind == "poor"]
     parts = []
     if poor:

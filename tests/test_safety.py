@@ -21,7 +21,14 @@ from dynmodel.errors import DataError, Interrupted, OutputError
 from dynmodel.explain import explain, internal_error_line
 from dynmodel.model import band_check
 from dynmodel.textfiles import DataNote, decode_text
-from dynmodel.usefulness import assess, held_out_splits, input_dependence, stability_fix, summary_line
+from dynmodel.usefulness import (
+    assess,
+    carry_over,
+    held_out_splits,
+    input_dependence,
+    stability_fix,
+    summary_line,
+)
 
 
 def _spec(folder, **data):
@@ -386,6 +393,39 @@ def test_a_constant_model_ignores_its_input(fitted):
     notes = assess(const, ds)
     assert [n.kind for n in notes if n.kind == "ignores-input"] == ["ignores-input"]
     assert input_dependence(const, ds) == 0.0
+
+
+def test_carry_over_thresholds():
+    def kinds(validation, test, key="test"):
+        return [n.kind for n in carry_over({"validation": {"nmse": validation}, key: {"nmse": test}})]
+
+    assert kinds(0.1, 48.7) == ["does-not-carry-over"]  # EMPS, 6000 samples: validates at 0.1 %, tests at 48.7 %
+    assert kinds(0.1, 48.7, "test:pulses") == ["does-not-carry-over"]
+    assert kinds(0.5, 9.9) == []  # 20 x, but under 10 %: a small model error
+    assert kinds(2.0, 19.9) == []  # under 10 x
+    assert kinds(2.0, 20.0) == ["does-not-carry-over"]
+    assert carry_over({"train": {"nmse": 0.1}, "test": {"nmse": 90.0}}) == []  # no validation to compare with
+    assert carry_over({"validation": {"nmse": 0.1}, "validation:b": {"nmse": 90.0}}) == []  # not a test split
+
+
+def test_a_model_that_does_not_carry_over_to_the_test_is_said_so(tmp_path):
+    """The system changes in the test part of the recording (its input gain triples): the model validates
+    well on the part before, and the fit says its validation did not represent the test."""
+    u, y = narx(1000, 4)
+    y_changed = narx(1000, 4, c0=3.0)[1]
+    y = np.concatenate([y[:800], y_changed[800:]])
+    write_csv(tmp_path / "run.csv", {"u": u, "y": y})
+    raw = base_spec("run.csv")
+    raw["model"] = {"family": "narx"}
+    spec = make_spec(raw, tmp_path)
+    ds = load_dataset(spec)
+    model, runs = engine.fit_dataset(spec, ds)
+    assert model.metrics["validation"]["nmse"] < 1.0 and model.metrics["test"]["nmse"] > 20.0
+    notes = assess(model, ds, runs)
+    assert [n.kind for n in notes] == ["does-not-carry-over"]
+    line = summary_line(notes, "s.yaml", "mse_inf")
+    assert line.startswith("this model does not carry over to the test data: its test NMSE (")
+    assert "Fix: validate on data like the test's" in line
 
 
 def test_split_keys_are_generic():
