@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -21,6 +21,7 @@ from scipy.optimize import least_squares
 from dynmodel.data.training import TrainingData
 
 from . import kernels
+from .lm import levenberg_marquardt
 
 #: residual of a sample after a breakdown of the run (NaN), in units of the output's std
 _BROKEN = 1e3
@@ -273,10 +274,13 @@ class FreeRunProblem:
         parts = []
         for rows, u, y in self._series():
             _, J, _ = self.st.run_jacobian(u, y, w, self.mix, self.clip)
-            parts.append((J[rows] * self.scale[None, :, None]).reshape(-1, w.size))
+            # scored rows are one contiguous run in practice: a view, not a copy of the N x p matrix
+            block = J[rows[0] : rows[-1] + 1] if rows[-1] - rows[0] + 1 == rows.size else J[rows]
+            block *= self.scale[None, :, None]
+            parts.append(block.reshape(-1, w.size))
         if self.penalty is not None:
             parts.append(np.diag(self.penalty))
-        return np.concatenate(parts)
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
     def cost(self, w: np.ndarray) -> float:
         r = self.residuals(w)
@@ -296,17 +300,23 @@ def refine(
     w = np.asarray(w0, dtype=np.float64).copy()
     for mix in mixes:
         problem.mix = mix
-        res = least_squares(
-            problem.residuals,
-            w,
-            jac=problem.jacobian,
-            method=solver,
-            x_scale="jac",
-            ftol=tol,
-            xtol=tol,
-            gtol=tol,
-            max_nfev=max_nfev,
-        )
+        res: Any
+        if solver == "lm":
+            res = levenberg_marquardt(
+                problem.residuals, problem.jacobian, w, max_nfev=max_nfev, ftol=tol, xtol=tol, gtol=tol
+            )
+        else:
+            res = least_squares(
+                problem.residuals,
+                w,
+                jac=problem.jacobian,
+                method=solver,
+                x_scale="jac",
+                ftol=tol,
+                xtol=tol,
+                gtol=tol,
+                max_nfev=max_nfev,
+            )
         if np.all(np.isfinite(res.x)) and res.cost <= 0.5 * problem.cost(w) * (1 + 1e-12):
             w = res.x.copy()
         if after_step is not None:

@@ -54,7 +54,8 @@ class FreeRunRefinement(FamilyParams):
 
     solver: Literal["lm", "trf"] = Field(
         "lm",
-        description="scipy.optimize.least_squares method: lm (Levenberg-Marquardt) or trf (trust region); "
+        description="lm: More's trust-region Levenberg-Marquardt (MINPACK lmder's method, its QR done by LAPACK "
+        "in row blocks, plugins/narx/lm.py); trf: scipy.optimize.least_squares' trust region reflective; "
         "both use the exact Jacobian of the free run from the sensitivity recursion",
     )
     max_nfev: int = Field(200, ge=1, description="at most this many free runs per solve")
