@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .data.dataset import is_test
+
 if TYPE_CHECKING:
     from .data.dataset import Dataset
     from .model import FittedModel, Run
@@ -163,8 +165,7 @@ def carry_over(metrics: Mapping[str, Any]) -> list[Note]:
     out = []
     for split, m in metrics.items():
         value = (m or {}).get("nmse")
-        is_test = split == "test" or split.startswith("test:")
-        if not is_test or value is None or not np.isfinite(value):
+        if not is_test(split) or value is None or not np.isfinite(value):
             continue
         if value >= CARRY_OVER_FLOOR and value >= CARRY_OVER_FACTOR * validation:
             out.append(
@@ -219,17 +220,16 @@ CARRY_OVER_FIX = (
 def summary_line(notes: list[Note], spec_path: str | None = None, cost: str | None = None) -> str | None:
     """One line for the user: every finding but divergence (reported as an error of its own). A model that
     validates well but does not carry over to the test is said so apart from a model of little use."""
-    carry = [n for n in notes if n.kind == "does-not-carry-over"]
-    notes = [n for n in notes if n.kind != "does-not-carry-over"]
-    line = _useless_line(notes, spec_path, cost)
-    if carry and line is None:
+    carry = "; ".join(n.text for n in notes if n.kind == "does-not-carry-over")
+    line = _useless_line([n for n in notes if n.kind != "does-not-carry-over"], spec_path, cost)
+    if not carry:
+        return line
+    if line is None:
         return (
-            f"this model does not carry over to the test data: {'; '.join(n.text for n in carry)}, so the "
-            f"validation did not represent the test. Fix: {CARRY_OVER_FIX}"
+            f"this model does not carry over to the test data: {carry}, so the validation did not represent the "
+            f"test. Fix: {CARRY_OVER_FIX}"
         )
-    if carry and line is not None:
-        return f"{line}; also, {'; '.join(n.text for n in carry)}: the validation did not represent the test"
-    return line
+    return f"{line}; also, {carry}: the validation did not represent the test"
 
 
 def _useless_line(notes: list[Note], spec_path: str | None, cost: str | None) -> str | None:

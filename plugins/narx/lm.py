@@ -131,11 +131,9 @@ def levenberg_marquardt(
     status, message = 0, "the number of function evaluations reached max_nfev"
     first = True
     while status == 0 and nfev < max_nfev:
-        J = jac(x)
+        R, q = r_factor(jac(x), r)
         njev += 1
-        norms = np.sqrt(np.einsum("ij,ij->j", J, J))
-        R, q = r_factor(J, r)
-        del J
+        norms = np.linalg.norm(R, axis=0)  # = the Jacobian's column norms (J = QR, Q orthonormal)
         if D is None:
             D = np.where(norms > 0, norms, 1.0)
             xnorm = float(np.linalg.norm(D * x))
