@@ -13,6 +13,7 @@ from conftest import ROOT, SHARED_DATA, narx, write_csv
 import dynmodel
 from dynmodel import engine, regression
 from dynmodel.data import Preprocessor, load_dataset, training_data
+from dynmodel.data.training import Series, TrainingData
 from dynmodel.errors import DynmodelError, SpecError
 from dynmodel.spec import NoiseSpec, load_spec, validate_spec
 from dynmodel_plugins.narx import Narx, NarxFamilyParams, kernels
@@ -27,7 +28,7 @@ from dynmodel_plugins.narx.embedding import (
     term_label,
 )
 from dynmodel_plugins.narx.estimation import Scored, make_structure
-from dynmodel_plugins.narx.selection import Candidates, _sensitivity_gram
+from dynmodel_plugins.narx.selection import Candidates, _sensitivity_gram, training_window
 
 INF2 = (np.full(2, -np.inf), np.full(2, np.inf))
 
@@ -314,6 +315,24 @@ def test_candidate_sensitivities_equal_the_jacobian_and_partial_gram_selects_as_
     part = regression.fos_select(Gp, c, yy, forced=tuple(range(m)), max_terms=m + 3)
     full = regression.fos_select(G, c, yy, forced=tuple(range(m)), max_terms=m + 1)
     assert part.order[m] == full.order[m]
+
+
+def test_training_window_keeps_the_last_samples_of_each_training_segment_and_all_validation():
+    u = np.arange(100.0)[:, None]
+    y = np.arange(100.0)[:, None] * 2
+    td = TrainingData(
+        [Series(u[:60], y[:60]), Series(u[60:], y[60:])],
+        {"train": [(0, 0, 50), (1, 0, 30)], "validation": [(0, 50, 60), (1, 30, 40)]},
+        ["u"],
+        ["y"],
+        1.0,
+    )
+    assert training_window(td, 80) is td
+    w = training_window(td, 40)
+    assert w.segments["train"] == [(0, 0, 25), (1, 0, 15)]
+    assert w.segments["validation"] == [(0, 25, 35), (1, 15, 25)]
+    np.testing.assert_array_equal(w.series[0].u[:, 0], np.arange(25.0, 60.0))
+    np.testing.assert_array_equal(w.series[1].y[:, 0], 2 * np.arange(75.0, 100.0))
 
 
 def _chunks(X, D, ch, lag, src, live, ptr, reg, pw, out, start, stop):
@@ -634,6 +653,24 @@ def test_free_run_selection_grows_from_the_linear_model(tmp_path):
     start = linear.family.selection_["path"][0]
     assert start["start"] == "linear" and "y[t-1]" in start["added"] and "u[t" in start["added"]
     assert linear.metrics["validation"]["nmse"] < 20
+
+
+def test_free_run_selection_grows_on_a_window_then_reestimates_on_the_whole_training_split():
+    """``growth_window``: the terms are chosen on the last samples of the training split, their weights
+    then re-estimated on all of it from the grown ones, and the weights that validate better are kept;
+    with a window as long as the data the selection is the one without a window."""
+    raw = narx_raw(n=2400, test_n=300, cost="mse_inf", noise=0.02, degree=2, patience=3, bounds=0.5)
+    raw["model"]["params"]["selection"] = "free_run"
+    windowed = fit({**raw, "model": {"family": "narx", "params": {**raw["model"]["params"], "growth_window": 600}}})
+    record = windowed.family.selection_["window"]
+    grown, whole = record["validation_nmse_grown"], record["validation_nmse_whole"]
+    assert record["samples"] == 600 and record["weights"] == ("whole" if whole <= grown else "window")
+    assert windowed.metrics["validation"]["nmse"] == pytest.approx(min(grown, whole), rel=1e-6)
+    assert windowed.metrics["validation"]["nmse"] < 5
+    longer = fit({**raw, "model": {"family": "narx", "params": {**raw["model"]["params"], "growth_window": 1800}}})
+    plain = fit({**raw, "model": {"family": "narx", "params": {**raw["model"]["params"], "growth_window": None}}})
+    assert "window" not in longer.family.selection_ and "window" not in plain.family.selection_
+    np.testing.assert_array_equal(longer.family.weights_, plain.family.weights_)
 
 
 # ------------------------------------------------------------------------- thesis reproductions

@@ -73,6 +73,7 @@ class Narx(Family):
         terms: list[str] | dict[str, list[str]] | None = None,
         selection: Literal["one_step", "free_run"] = "one_step",
         free_run_start: Literal["linear", "constant"] = "linear",
+        growth_window: int | None = None,
         max_terms: int | None = None,
         threshold: float | None = None,
         stop_on: Literal["free_run", "one_step"] = "free_run",

@@ -14,6 +14,9 @@ from pydantic import ConfigDict, Field, ValidationError, field_validator, model_
 
 from dynmodel.family import FamilyParams
 
+#: selection free_run: training samples family auto grows the model on (``growth_window``)
+GROWTH_WINDOW = 12000
+
 
 class LagRange(FamilyParams):
     """Lags from ``from`` to ``to`` (both included) in steps of ``step``."""
@@ -103,6 +106,19 @@ class NarxFamilyParams(FamilyParams):
         "terms (an ARX model) that validate best in free run, with least-squares weights re-estimated on the free "
         "run; constant: the constant alone (its free run is constant, so no fed-back term can be told apart from "
         "it and the growth often stops there)",
+    )
+    growth_window: Optional[int] = Field(
+        None,
+        ge=100,
+        description="selection free_run: grow the model on at most this many training samples (the last of each "
+        "training segment, in proportion to its length), then re-estimate the chosen terms' weights on the whole "
+        "training split starting from the grown ones, kept when they validate no worse. On a long record the "
+        "free-run sensitivities of a lightly damped model build up along the run, the growth stops early and the "
+        "weights stall (Bouc-Wen, 32 768 samples: 1.08 % validation NMSE grown on all of it, 0.078 % grown on the "
+        "last 12 000). null (default): grow on all of it. family: auto uses 12 000 (GROWTH_WINDOW), its test-input "
+        "band check guarding the larger models against extrapolation (the seal fitted at 1-5 bar: 0.0069 % "
+        "validation NMSE grown on 12 000 samples, but the run diverges at 7 bar where the one grown on all stays "
+        "bounded)",
     )
     max_terms: Optional[int] = Field(None, gt=0, description="at most this many terms per output (the constant counts)")
     threshold: Optional[float] = Field(

@@ -25,6 +25,7 @@ from typing import Any
 from dynmodel.search.space import Candidate, Found, SearchContext
 
 from .embedding import pool_size
+from .params import GROWTH_WINDOW
 
 NAME = "narx"
 #: seconds per training sample and pool monomial of a screening fit (FOS on a Gram matrix, free-run stop)
@@ -54,9 +55,9 @@ def _initial(ctx: SearchContext, L: int) -> dict[str, Any]:
     return {} if ctx.allows_warmup(L) else {"initial": "zeros"}
 
 
-def _work(ctx: SearchContext, pool: int, terms: int) -> tuple[float, float]:
-    """(full, screening) seconds of one fit on ctx.n_train samples."""
-    n = max(ctx.n_train, 1)
+def _work(ctx: SearchContext, pool: int, terms: int, samples: int | None = None) -> tuple[float, float]:
+    """(full, screening) seconds of one fit on ``samples`` (default ctx.n_train) training samples."""
+    n = max(ctx.n_train if samples is None else samples, 1)
     screen = 0.05 + _SCREEN_COST * n * pool * (1 + n / 50000)
     refine = _REFINE_COST * n * terms * terms * 40
     return screen + refine, screen
@@ -223,14 +224,17 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
             k,
         )
     if k <= 40:
-        full, screen = _work(ctx, pool, k)
+        grow, _ = _work(ctx, pool, k, min(ctx.n_train, GROWTH_WINDOW))
+        whole, _ = _work(ctx, pool, k)
         out.append(
             Candidate(
                 family=NAME,
-                params={**fixed, "selection": "free_run"},
+                params={**fixed, "selection": "free_run", "growth_window": GROWTH_WINDOW},
                 summary=f"degree {degree}, lags up to {L}, terms selected on the free-running error",
                 cost="mse_inf",
-                work=max(2.0, k / 2) * full,  # every growth step re-estimates the weights on the free run
+                # every growth step re-estimates the weights on the free run (on the growth window), then once
+                # more on the whole training split
+                work=max(2.0, k / 2) * grow + (whole if ctx.n_train > GROWTH_WINDOW else 0.0),
                 stochastic=False,
             )
         )

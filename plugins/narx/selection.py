@@ -19,17 +19,27 @@ see :func:`_linear_start`): around a constant model every fed-back term is invis
 linearisation is degenerate), so a growth from the constant alone stops there on most measured
 systems. A current term whose sensitivity falls numerically into the span of the others (an
 integrator's y[t-1] and y[t-2]) is skipped by the forced selection instead of ending the growth.
+
+The growth runs on at most ``growth_window`` training samples (the last of each training segment),
+and the chosen terms' weights are then re-estimated on the whole training split from the grown ones
+(:func:`free_run_selection`). Along a long free run the sensitivities of a lightly damped model
+build up (on Bouc-Wen's 32 768 training samples they grew by 1e8 after the 13th term, and every
+candidate's sensitivity then lay numerically in the span of the current ones), the growth stops and
+the weights stall in a poor minimum: grown on the whole record 1.08 % validation NMSE with 13 terms,
+grown on the last 12 000 samples and re-estimated on all 0.078 % with 70 terms. A shorter run first
+and the whole record after is a continuation in the horizon of the free run.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from dynmodel import regression
-from dynmodel.data.training import TrainingData
+from dynmodel.data.training import Series, TrainingData
 from dynmodel.family import Progress
 
 from . import kernels
@@ -109,6 +119,31 @@ def _sensitivity_gram(
     return G, c, yy
 
 
+def training_window(data: TrainingData, samples: int) -> TrainingData:
+    """``data`` with its training split cut to at most ``samples`` samples: the last ones of each training
+    segment, in proportion to the segment's length; validation segments kept whole; every recording
+    starts at its first kept sample (the free run starts there, as it does at a recording's start)."""
+    train = data.segments.get("train", [])
+    total = sum(b - a for _, a, b in train)
+    if total <= samples:
+        return data
+    kept: list[tuple[int, int, int]] = []
+    left = samples
+    for i, (s, a, b) in enumerate(train):
+        share = left if i == len(train) - 1 else int(round(samples * (b - a) / total))
+        share = min(share, b - a, left)
+        left -= share
+        if share > 0:
+            kept.append((s, b - share, b))
+    pieces = {"train": kept, "validation": list(data.segments.get("validation", []))}
+    used = sorted({s for rows in pieces.values() for s, _, _ in rows})
+    first = {s: min(a for rows in pieces.values() for ss, a, _ in rows if ss == s) for s in used}
+    index = {s: i for i, s in enumerate(used)}
+    series = [Series(data.series[s].u[first[s] :], data.series[s].y[first[s] :]) for s in used]
+    segments = {k: [(index[s], a - first[s], b - first[s]) for s, a, b in rows] for k, rows in pieces.items() if rows}
+    return dataclasses.replace(data, series=series, segments=segments)
+
+
 def _linear_start(
     emb: Embedding,
     pool: np.ndarray,
@@ -176,8 +211,50 @@ def free_run_selection(
     params: NarxFamilyParams,
     progress: Progress,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-    """Grow the model term by term on the linearised free-running error (module docstring)."""
+    """Grow the model term by term on the linearised free-running error (module docstring), on at most
+    ``growth_window`` training samples, then re-estimate the weights on the whole training split from the
+    grown ones; those are kept when they validate no worse (without validation: always, since the
+    Levenberg-Marquardt steps never raise the training error)."""
     p = params
+    size = p.growth_window
+    window = data if size is None else training_window(data, size)
+    exps, outs, w, info = _grow(emb, pool, window, n_out, start, clip, band, p, progress)
+    if size is None or window is data:
+        return exps, outs, w, info
+    r = p.refinement
+    st = make_structure(emb, exps, outs, n_out, start, clip)
+    finite_clip = (np.maximum(clip[0], band[0]), np.minimum(clip[1], band[1]))
+    progress("select", None, f"{len(w)} terms: weights re-estimated on the whole training split")
+    w_all = refine(
+        FreeRunProblem(st, data, Scored.of(data, "train", start), finite_clip), w, [0.0], r.solver, r.max_nfev, r.tol
+    )
+    kept = "whole"
+    record: dict[str, Any] = {"samples": size}
+    if data.has("validation"):
+        val = Scored.of(data, "validation", start)
+        if val.n:
+            grown, whole = split_error(st, data, val, w, band), split_error(st, data, val, w_all, band)
+            record["validation_nmse_grown"] = None if not np.isfinite(grown) else 100 * grown
+            record["validation_nmse_whole"] = None if not np.isfinite(whole) else 100 * whole
+            if not whole <= grown:
+                kept = "window"
+    record["weights"] = kept
+    info["window"] = record
+    return exps, outs, (w_all if kept == "whole" else w), info
+
+
+def _grow(
+    emb: Embedding,
+    pool: np.ndarray,
+    data: TrainingData,
+    n_out: int,
+    start: int,
+    clip: tuple[np.ndarray, np.ndarray],
+    band: tuple[np.ndarray, np.ndarray],
+    p: NarxFamilyParams,
+    progress: Progress,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    """The growth itself on ``data`` (:func:`free_run_selection`)."""
     r = p.refinement
     scored = Scored.of(data, "train", start)
     val = Scored.of(data, "validation", start) if data.has("validation") else None
