@@ -37,6 +37,23 @@ Range = tuple[int, int, int]  # (recording index, start, stop)
 _SPLIT_PREFIX = re.compile(r"^(validation|test(:[A-Za-z][A-Za-z0-9_-]*)?):")
 
 
+def last_samples(ranges: list[Range], samples: int | None) -> list[Range]:
+    """``ranges`` cut to at most ``samples`` samples in all (None: unchanged): the last ones of each range,
+    in proportion to its length (the last range takes what rounding left); ranges left empty are dropped."""
+    total = sum(b - a for _, a, b in ranges)
+    if samples is None or samples >= total:
+        return list(ranges)
+    kept: list[Range] = []
+    left = samples
+    for i, (r, a, b) in enumerate(ranges):
+        share = left if i == len(ranges) - 1 else int(round(samples * (b - a) / total))
+        share = min(share, b - a, left)
+        left -= share
+        if share > 0:
+            kept.append((r, b - share, b))
+    return kept
+
+
 def is_test(split: str) -> bool:
     """Is ``split`` a test split key (``test`` or ``test:<name>``)?"""
     return split == "test" or split.startswith("test:")

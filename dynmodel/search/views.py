@@ -29,7 +29,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from ..data.dataset import Dataset, Recording
+from ..data.dataset import Dataset, Recording, last_samples
 
 FIT_SPLITS = ("train", "validation")
 #: smallest validation block of a fold (samples)
@@ -93,22 +93,7 @@ def fit_part(ds: Dataset) -> Dataset:
 def screen(ds: Dataset, samples: int | None) -> Dataset:
     """The training split cut to its last ``samples`` samples (None: all of it), validation unchanged,
     test sets dropped; recordings start at their first kept sample."""
-    train = ds.ranges.get("train", [])
-    total = sum(b - a for _, a, b in train)
-    keep: dict[tuple[int, int, int], int] = {}
-    if samples is None or samples >= total:
-        keep = {r: r[2] - r[1] for r in train}
-    else:
-        left = samples
-        for i, r in enumerate(train):
-            share = left if i == len(train) - 1 else int(round(samples * (r[2] - r[1]) / total))
-            share = min(share, r[2] - r[1], left)
-            keep[r] = share
-            left -= share
-    pieces: dict[str, list[tuple[int, int, int]]] = {"train": []}
-    for r in train:
-        if keep[r] > 0:
-            pieces["train"].append((r[0], r[2] - keep[r], r[2]))
+    pieces: dict[str, list[tuple[int, int, int]]] = {"train": last_samples(ds.ranges.get("train", []), samples)}
     if ds.ranges.get("validation"):
         pieces["validation"] = list(ds.ranges["validation"])
     return _compact(ds, pieces)

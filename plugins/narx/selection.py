@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from dynmodel import regression
+from dynmodel.data.dataset import last_samples
 from dynmodel.data.training import Series, TrainingData
 from dynmodel.family import Progress
 
@@ -124,17 +125,9 @@ def training_window(data: TrainingData, samples: int) -> TrainingData:
     segment, in proportion to the segment's length; validation segments kept whole; every recording
     starts at its first kept sample (the free run starts there, as it does at a recording's start)."""
     train = data.segments.get("train", [])
-    total = sum(b - a for _, a, b in train)
-    if total <= samples:
+    kept = last_samples(train, samples)
+    if kept == train:
         return data
-    kept: list[tuple[int, int, int]] = []
-    left = samples
-    for i, (s, a, b) in enumerate(train):
-        share = left if i == len(train) - 1 else int(round(samples * (b - a) / total))
-        share = min(share, b - a, left)
-        left -= share
-        if share > 0:
-            kept.append((s, b - share, b))
     pieces = {"train": kept, "validation": list(data.segments.get("validation", []))}
     used = sorted({s for rows in pieces.values() for s, _, _ in rows})
     first = {s: min(a for rows in pieces.values() for ss, a, _ in rows if ss == s) for s in used}
@@ -216,45 +209,9 @@ def free_run_selection(
     grown ones; those are kept when they validate no worse (without validation: always, since the
     Levenberg-Marquardt steps never raise the training error)."""
     p = params
-    size = p.growth_window
-    window = data if size is None else training_window(data, size)
-    exps, outs, w, info = _grow(emb, pool, window, n_out, start, clip, band, p, progress)
-    if size is None or window is data:
-        return exps, outs, w, info
-    r = p.refinement
-    st = make_structure(emb, exps, outs, n_out, start, clip)
-    finite_clip = (np.maximum(clip[0], band[0]), np.minimum(clip[1], band[1]))
-    progress("select", None, f"{len(w)} terms: weights re-estimated on the whole training split")
-    w_all = refine(
-        FreeRunProblem(st, data, Scored.of(data, "train", start), finite_clip), w, [0.0], r.solver, r.max_nfev, r.tol
-    )
-    kept = "whole"
-    record: dict[str, Any] = {"samples": size}
-    if data.has("validation"):
-        val = Scored.of(data, "validation", start)
-        if val.n:
-            grown, whole = split_error(st, data, val, w, band), split_error(st, data, val, w_all, band)
-            record["validation_nmse_grown"] = None if not np.isfinite(grown) else 100 * grown
-            record["validation_nmse_whole"] = None if not np.isfinite(whole) else 100 * whole
-            if not whole <= grown:
-                kept = "window"
-    record["weights"] = kept
-    info["window"] = record
-    return exps, outs, (w_all if kept == "whole" else w), info
-
-
-def _grow(
-    emb: Embedding,
-    pool: np.ndarray,
-    data: TrainingData,
-    n_out: int,
-    start: int,
-    clip: tuple[np.ndarray, np.ndarray],
-    band: tuple[np.ndarray, np.ndarray],
-    p: NarxFamilyParams,
-    progress: Progress,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-    """The growth itself on ``data`` (:func:`free_run_selection`)."""
+    whole = data
+    if p.growth_window is not None:
+        data = training_window(data, p.growth_window)
     r = p.refinement
     scored = Scored.of(data, "train", start)
     val = Scored.of(data, "validation", start) if data.has("validation") else None
@@ -264,13 +221,13 @@ def _grow(
             "selection: free_run needs a stopping rule: a validation split (used with patience), max_terms or threshold"
         )
     limit = p.max_terms if p.max_terms is not None else pool.shape[0]
+    finite_clip = (np.maximum(clip[0], band[0]), np.minimum(clip[1], band[1]))
     if p.free_run_start == "linear":
         exps, outs, w = _linear_start(emb, pool, data, n_out, start, clip, band, p, limit, val if use_val else None)
-        finite_clip0 = (np.maximum(clip[0], band[0]), np.minimum(clip[1], band[1]))
         st0 = make_structure(emb, exps, outs, n_out, start, clip)
         unstable = diverges(st0, data, scored, w, band)
         mixes = [1.0 - i / r.ramp for i in range(1, r.ramp + 1)] if unstable else [0.0]
-        w = refine(FreeRunProblem(st0, data, scored, finite_clip0), w, mixes, r.solver, r.max_nfev, r.tol)
+        w = refine(FreeRunProblem(st0, data, scored, finite_clip), w, mixes, r.solver, r.max_nfev, r.tol)
         progress("select", None, f"{len(w)} terms: the linear model (ARX) re-estimated on the free run")
     elif p.constant:
         const = ~pool.any(axis=1)
@@ -287,7 +244,6 @@ def _grow(
         outs = np.zeros(0, dtype=np.int64)
         w = np.zeros(0)
     first = start + emb.max_lag  # scored rows whose every regressor comes from the free run itself
-    finite_clip = (np.maximum(clip[0], band[0]), np.minimum(clip[1], band[1]))
     history: list[dict[str, Any]] = [
         {"added": " + ".join(emb.label_of(e) for e in exps) or None, "terms": int(len(w)), "start": p.free_run_start}
     ]
@@ -341,10 +297,36 @@ def _grow(
         progress("select", None, f"{len(w)} terms: + {label}")
     assert best is not None
     exps, outs, w = best
-    info = {
+    info: dict[str, Any] = {
         "method": "free_run",
         "pool": int(pool.shape[0]),
         "terms": [int(np.sum(outs == k)) for k in range(n_out)],
         "path": history,
     }
+    if data is not whole:
+        st = make_structure(emb, exps, outs, n_out, start, clip)
+        w, info["window"] = _refit_on_whole(st, whole, w, start, finite_clip, band, p, progress)
     return exps, outs, w, info
+
+
+def _refit_on_whole(
+    st, data: TrainingData, w: np.ndarray, start: int, clip, band, p: NarxFamilyParams, progress: Progress
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """The grown weights ``w`` re-estimated on the whole training split of ``data``; the refitted ones are
+    returned when they validate no worse (without validation: always, since the Levenberg-Marquardt steps
+    never raise the training error), with a record of the choice."""
+    r = p.refinement
+    progress("select", None, f"{len(w)} terms: weights re-estimated on the whole training split")
+    w_all = refine(
+        FreeRunProblem(st, data, Scored.of(data, "train", start), clip), w, [0.0], r.solver, r.max_nfev, r.tol
+    )
+    record: dict[str, Any] = {"samples": p.growth_window, "weights": "whole"}
+    val = Scored.of(data, "validation", start) if data.has("validation") else None
+    if val is not None and val.n:
+        grown, refitted = split_error(st, data, val, w, band), split_error(st, data, val, w_all, band)
+        record["validation_nmse_grown"] = None if not np.isfinite(grown) else 100 * grown
+        record["validation_nmse_whole"] = None if not np.isfinite(refitted) else 100 * refitted
+        if not refitted <= grown:
+            record["weights"] = "window"
+            return w, record
+    return w_all, record
