@@ -11,7 +11,7 @@ from conftest import narx, write_csv
 from dynmodel import engine
 from dynmodel.data import load_dataset
 from dynmodel.search import search_options
-from dynmodel.search.run import SURVIVORS
+from dynmodel.search.run import SURVIVOR_FACTOR, SURVIVORS
 from dynmodel.spec import validate_spec
 
 WINDOW = 20
@@ -27,7 +27,7 @@ def _system(u: np.ndarray) -> np.ndarray:
     return y
 
 
-def _search(tmp_path: Path, test_gain: float) -> dict:
+def _search(tmp_path: Path, test_gain: float, budget: float = 2) -> dict:
     u, y = narx(3000, 11)
     ut = test_gain * np.random.default_rng(12).standard_normal(800)
     write_csv(tmp_path / "train.csv", {"u": u, "y": y})
@@ -42,7 +42,7 @@ def _search(tmp_path: Path, test_gain: float) -> dict:
             "test": {"path": "test.csv"},
             "init_window": {"test": WINDOW},
         },
-        "model": {"family": "auto", "params": {"budget": 2, "families": ["narx"]}},
+        "model": {"family": "auto", "params": {"budget": budget, "families": ["narx"]}},
         "seed": 0,
     }
     spec = validate_spec(raw, "<test>", tmp_path)
@@ -81,3 +81,20 @@ def test_a_test_input_beyond_the_training_range_gets_several_full_fits(tmp_path)
     # ... and the best survivors are all fitted in full when it leaves it: the choice is made among them
     assert _full(wide) - _second_chances(wide) == min(SURVIVORS, _screened(wide)) >= 2
     assert any("leave the training range" in why for why in wide["cautious"])
+
+
+def test_a_budget_that_allows_it_fits_every_candidate_screened_near_the_best_in_full(tmp_path):
+    """The screening variant ranks the full ones coarsely: with budget to spare, every candidate screened within
+    SURVIVOR_FACTOR of the best is fitted in full, not only the best SURVIVORS; the rest are not."""
+    record = _search(tmp_path, 0.5, budget=60)
+    screened = {
+        c["key"]: c["levels"]["screen"]["score"]
+        for c in record["candidates"]
+        if "screen" in c["levels"] and c["levels"]["screen"]["score"] is not None and c["levels"]["screen"]["band_ok"]
+    }
+    best = min(screened.values())
+    near = {k for k, v in screened.items() if v <= SURVIVOR_FACTOR * best}
+    full = {c["key"] for c in record["candidates"] if c["key"] in screened and "final" in c["levels"]}
+    assert record["budget"]["planned"] < 0.5 * record["budget"]["allowance"]  # the budget was not the limit
+    assert len(near) > SURVIVORS
+    assert full == near < set(screened)  # the far ones (the linear model here) are not refitted

@@ -6,8 +6,10 @@ Stages, each with members fixed before it starts (see :mod:`.plan` for the budge
    cheap screening variant, on the screening layout (the last :data:`SCREEN_SAMPLES` training samples;
    for short data the blocked cross-validation); the linear and mean references alongside;
 2. ``grow``: the neighbours of the best :data:`GROW_FROM` candidates (the hook with ``around``);
-3. ``full``: the best :data:`SURVIVORS` in their full variant on the final layout (all training samples, or
-   the folds), random ones with every seed (a screening fit that already was a final one is not repeated);
+3. ``full``: the survivors (:meth:`Search.survivors`: the best :data:`SURVIVORS`, then every other one within
+   :data:`SURVIVOR_FACTOR` of the best as far as the budget's share allows) in their full variant on the
+   final layout (all training samples, or the folds), random ones with every seed (a screening fit that
+   already was a final one is not repeated);
 4. ``moves``: ``dynmodel diagnose``'s detectors on the leader, and the extensions they propose (the
    residual says what is missing: extend, refit, keep what validates);
 
@@ -52,10 +54,12 @@ CV_BELOW = 1000
 #: ... and the training and validation samples together are at most this many
 CV_MAX = 20000
 FOLDS = 5
-#: configurations carried from the screening to the final layout
+#: configurations always carried from the screening to the final layout ...
 SURVIVORS = 3
-#: ... plus the best of every other family within this factor of the best score
-FAMILY_SURVIVOR = 3.0
+#: ... and, as far as the budget's share allows, every other one screened within this factor of the best (the
+#: screening variant ranks the full ones coarsely: on Cascaded Tanks the full fit of the fifth-ranked
+#: screening candidate validates best)
+SURVIVOR_FACTOR = 3.0
 #: ... plus at most this many that validated better still but left the output band at screening only
 SECOND_CHANCES = 2
 #: candidates whose neighbours are measured
@@ -389,33 +393,29 @@ class Search:
         return s.finite and not s.ok and (e.random or not self._screen_is_final(e.cand))
 
     def survivors(self) -> list[str]:
-        """The candidates fitted in full: the best :data:`SURVIVORS` at screening, the best of every other
-        family within :data:`FAMILY_SURVIVOR` of the best, and up to :data:`SECOND_CHANCES` candidates that
-        validated better than all of them but whose screening fit left the output band (a cheap variant's
-        least-squares weights, or one seed, can leave it where the full variant does not: the default NARX
-        on a short Bouc-Wen record does, and its full variant validates best and passes)."""
+        """The candidates fitted in full, in screening order (a budget that cannot fit them all keeps the best):
+        the best :data:`SURVIVORS` at screening and every other one within :data:`SURVIVOR_FACTOR` of the best
+        (whatever its family), and up to :data:`SECOND_CHANCES` candidates that validated better than the best
+        but whose screening fit left the output band (a cheap variant's least-squares weights, or one seed, can
+        leave it where the full variant does not: the default NARX on a short Bouc-Wen record does, and its full
+        variant validates best and passes)."""
         ranked = [k for k in self.ranking("screen") if self._usable(k, "screen")]
         if not ranked:
             ranked = [k for k in self.ranking("screen") if self.entries[k].summaries["screen"].finite]
-        out = ranked[:SURVIVORS]
-        if ranked:
-            best = self.entries[ranked[0]].summaries["screen"].score
-            families = {self.entries[k].cand.family for k in out}
-            for k in ranked[SURVIVORS:]:
-                e = self.entries[k]
-                if e.cand.family not in families and e.summaries["screen"].score <= FAMILY_SURVIVOR * max(best, 1e-12):
-                    out.append(k)
-                    families.add(e.cand.family)
-            again = [
-                k
-                for k in self.ranking("screen")
-                if k not in out and self._second_chance(k) and self.entries[k].summaries["screen"].score < best
-            ][:SECOND_CHANCES]
-            for k in again:
-                self.entries[k].origin += "; fitted in full although its screening fit left the output band"
-            # in score order, so a budget that cannot fit them all keeps the best
-            out = sorted(out + again, key=lambda k: (self.entries[k].summaries["screen"].score, k))
-        return out
+        if not ranked:
+            return []
+        best = self.entries[ranked[0]].summaries["screen"].score
+        out = ranked[:SURVIVORS] + [
+            k for k in ranked[SURVIVORS:] if self.entries[k].summaries["screen"].score <= SURVIVOR_FACTOR * max(best, 1e-12)
+        ]
+        again = [
+            k
+            for k in self.ranking("screen")
+            if k not in out and self._second_chance(k) and self.entries[k].summaries["screen"].score < best
+        ][:SECOND_CHANCES]
+        for k in again:
+            self.entries[k].origin += "; fitted in full although its screening fit left the output band"
+        return sorted(out + again, key=lambda k: (self.entries[k].summaries["screen"].score, k))
 
     # ------------------------------------------------------------------ stages
     def _add(self, cand: Candidate, origin: str) -> Entry | None:
