@@ -406,7 +406,9 @@ class Search:
             return []
         best = self.entries[ranked[0]].summaries["screen"].score
         out = ranked[:SURVIVORS] + [
-            k for k in ranked[SURVIVORS:] if self.entries[k].summaries["screen"].score <= SURVIVOR_FACTOR * max(best, 1e-12)
+            k
+            for k in ranked[SURVIVORS:]
+            if self.entries[k].summaries["screen"].score <= SURVIVOR_FACTOR * max(best, 1e-12)
         ]
         again = [
             k
