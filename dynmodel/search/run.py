@@ -57,8 +57,7 @@ FOLDS = 5
 #: configurations always carried from the screening to the final layout ...
 SURVIVORS = 3
 #: ... and, as far as the budget's share allows, every other one screened within this factor of the best (the
-#: screening variant ranks the full ones coarsely: on Cascaded Tanks the full fit of the fifth-ranked
-#: screening candidate validates best)
+#: screening variant ranks the full ones coarsely: on Cascaded Tanks the model chosen screened seventh of 22)
 SURVIVOR_FACTOR = 3.0
 #: ... plus at most this many that validated better still but left the output band at screening only
 SECOND_CHANCES = 2
