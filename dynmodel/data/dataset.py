@@ -54,6 +54,24 @@ def last_samples(ranges: list[Range], samples: int | None) -> list[Range]:
     return kept
 
 
+def compact_ranges(pieces: dict[str, list[Range]]) -> tuple[list[Range], dict[str, list[Range]]]:
+    """The recordings ``pieces`` (split -> ranges) use, each as (recording, first start, last stop) in recording
+    order, and ``pieces`` re-indexed onto that list and shifted to each cut's start (empty splits dropped)."""
+    used = sorted({r for rows in pieces.values() for r, _, _ in rows})
+    cuts = [
+        (
+            r,
+            min(a for rows in pieces.values() for rr, a, _ in rows if rr == r),
+            max(b for rows in pieces.values() for rr, _, b in rows if rr == r),
+        )
+        for r in used
+    ]
+    index = {r: i for i, (r, _, _) in enumerate(cuts)}
+    shift = {r: a for r, a, _ in cuts}
+    ranges = {s: [(index[r], a - shift[r], b - shift[r]) for r, a, b in rows] for s, rows in pieces.items() if rows}
+    return cuts, ranges
+
+
 def is_test(split: str) -> bool:
     """Is ``split`` a test split key (``test`` or ``test:<name>``)?"""
     return split == "test" or split.startswith("test:")

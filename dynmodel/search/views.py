@@ -29,7 +29,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from ..data.dataset import Dataset, Recording, last_samples
+from ..data.dataset import Dataset, Recording, compact_ranges, last_samples
 
 FIT_SPLITS = ("train", "validation")
 #: smallest validation block of a fold (samples)
@@ -101,18 +101,10 @@ def screen(ds: Dataset, samples: int | None) -> Dataset:
 
 def _compact(ds: Dataset, pieces: dict[str, list[tuple[int, int, int]]]) -> Dataset:
     """Recordings that hold any of ``pieces``, each cut to [first piece start, last piece stop)."""
-    used = sorted({r for rows in pieces.values() for r, _, _ in rows})
-    index: dict[int, int] = {}
-    recordings: list[Any] = []
-    shift: dict[int, int] = {}
-    for r in used:
-        start = min(a for rows in pieces.values() for rr, a, _ in rows if rr == r)
-        stop = max(b for rows in pieces.values() for rr, _, b in rows if rr == r)
-        rec = ds.recordings[r]
-        index[r] = len(recordings)
-        shift[r] = start
-        recordings.append(rec if (start, stop) == (0, rec.n) else _cut(rec, start, stop))
-    ranges = {s: [(index[r], a - shift[r], b - shift[r]) for r, a, b in rows] for s, rows in pieces.items() if rows}
+    cuts, ranges = compact_ranges(pieces)
+    recordings = [
+        ds.recordings[r] if (a, b) == (0, ds.recordings[r].n) else _cut(ds.recordings[r], a, b) for r, a, b in cuts
+    ]
     return _rebuild(ds, recordings, ranges)
 
 

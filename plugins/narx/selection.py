@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from dynmodel import regression
-from dynmodel.data.dataset import last_samples
+from dynmodel.data.dataset import compact_ranges, last_samples
 from dynmodel.data.training import Series, TrainingData
 from dynmodel.family import Progress
 
@@ -128,12 +128,8 @@ def training_window(data: TrainingData, samples: int) -> TrainingData:
     kept = last_samples(train, samples)
     if kept == train:
         return data
-    pieces = {"train": kept, "validation": list(data.segments.get("validation", []))}
-    used = sorted({s for rows in pieces.values() for s, _, _ in rows})
-    first = {s: min(a for rows in pieces.values() for ss, a, _ in rows if ss == s) for s in used}
-    index = {s: i for i, s in enumerate(used)}
-    series = [Series(data.series[s].u[first[s] :], data.series[s].y[first[s] :]) for s in used]
-    segments = {k: [(index[s], a - first[s], b - first[s]) for s, a, b in rows] for k, rows in pieces.items() if rows}
+    cuts, segments = compact_ranges({"train": kept, "validation": list(data.segments.get("validation", []))})
+    series = [Series(data.series[s].u[a:b], data.series[s].y[a:b]) for s, a, b in cuts]
     return dataclasses.replace(data, series=series, segments=segments)
 
 
