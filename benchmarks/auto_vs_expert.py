@@ -4,6 +4,7 @@ of models tuned by hand (chosen on validation) and the best published black-box 
     python benchmarks/auto_vs_expert.py                               # every case (about 40 min on 2 cores)
     python benchmarks/auto_vs_expert.py --only tanks emps --json auto.json
     python benchmarks/auto_vs_expert.py --budget 120 --workers 2       # another budget, another pool
+    python benchmarks/auto_vs_expert.py --only seal --families narx esn annealed-rnn   # built-in families only
 
 Cases (local files in ../shared/data, never downloaded; see each PROVENANCE.md):
 
@@ -103,6 +104,16 @@ def _candidates(model) -> list[dict[str, Any]]:
     return [{k: c.get(k) for k in keep} for c in (model.search or {}).get("candidates", [])]
 
 
+def _search_params(args) -> dict[str, Any]:
+    """The search's params from the command line: --budget, --families."""
+    out: dict[str, Any] = {}
+    if args.budget is not None:
+        out["budget"] = args.budget
+    if args.families:
+        out["families"] = args.families
+    return out
+
+
 def run_benchmark(name: str, args) -> dict[str, Any]:
     import yaml
 
@@ -112,8 +123,7 @@ def run_benchmark(name: str, args) -> dict[str, Any]:
     raw = yaml.safe_load((ROOT / "specs" / "benchmarks" / spec_file).read_text())
     raw["data"]["root"] = str(args.data / folder)
     raw["output"] = str(args.out / f"{name}-auto.h5")
-    if args.budget is not None:
-        raw["model"].setdefault("params", {})["budget"] = args.budget
+    raw["model"]["params"] = {**raw["model"].get("params", {}), **_search_params(args)}
     model, seconds = _fit(raw, ROOT / "specs" / "benchmarks", args.workers, args.scheduler)
     store.save(model, raw["output"])  # dynmodel inspect / predict / reliability-check it afterwards
     rows = []
@@ -184,7 +194,7 @@ def run_friction(name: str, args) -> list[dict[str, Any]]:
     for label, data in cases.items():
         row: dict[str, Any] = {"case": label, "defaults": {}}
         raw = {"name": "auto", "data": data, "evaluation": {"metrics": ["nmse", "rmse"]}, "seed": 0}
-        raw["model"] = {"family": "auto", "params": {} if args.budget is None else {"budget": args.budget}}
+        raw["model"] = {"family": "auto", "params": _search_params(args)}
         model, seconds = _fit(raw, args.out, args.workers, args.scheduler)
         row.update(
             auto=(model.metrics.get("test") or {}).get("nmse"),
@@ -221,8 +231,16 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=DATA, help="folder with one sub-folder per benchmark")
     ap.add_argument("--out", type=Path, default=Path(os.environ.get("TMPDIR", "/tmp")) / "auto-vs-expert")
     ap.add_argument("--json", type=Path, help="write every figure as JSON")
+    ap.add_argument(
+        "--families", nargs="*", help="search only these families (default: every installed one that takes part)"
+    )
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
+    from dynmodel.search.params import searchable_families
+
+    # the figures depend on what is installed: a third-party family (e.g. examples/dynmodel-arx) takes part
+    installed = searchable_families()
+    print(f"families searched: {', '.join(args.families or installed)} (installed: {', '.join(installed)})")
     names = args.only or [*BENCHMARKS, *FRICTION]
     results: dict[str, Any] = {}
     for name in names:
