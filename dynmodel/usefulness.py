@@ -201,12 +201,15 @@ def _auto_available() -> bool:
     return True
 
 
-def what_to_try(spec_path: str | None = None, cost: str | None = None) -> str:
-    """The usual next steps for a useless model."""
+def what_to_try(spec_path: str | None = None, cost: str | None = None, searched: bool = False) -> str:
+    """The usual next steps for a useless model (``searched``: it came from ``family: auto`` already)."""
     steps = [f"`dynmodel diagnose {spec_path or 'SPEC'}` to name what the model gets wrong"]
     if cost is not None and cost != "mse_inf":
         steps.append("cost: mse_inf")
-    steps.append("family: auto" if _auto_available() else "another family (`dynmodel plugins`)")
+    if searched:
+        steps.append("a larger search budget (model.params.budget) or more data")
+    else:
+        steps.append("family: auto" if _auto_available() else "another family (`dynmodel plugins`)")
     return "try " + ", ".join(steps[:-1]) + " or " + steps[-1]
 
 
@@ -217,11 +220,13 @@ CARRY_OVER_FIX = (
 )
 
 
-def summary_line(notes: list[Note], spec_path: str | None = None, cost: str | None = None) -> str | None:
+def summary_line(
+    notes: list[Note], spec_path: str | None = None, cost: str | None = None, searched: bool = False
+) -> str | None:
     """One line for the user: every finding but divergence (reported as an error of its own). A model that
     validates well but does not carry over to the test is said so apart from a model of little use."""
     carry = "; ".join(n.text for n in notes if n.kind == "does-not-carry-over")
-    line = _useless_line([n for n in notes if n.kind != "does-not-carry-over"], spec_path, cost)
+    line = _useless_line([n for n in notes if n.kind != "does-not-carry-over"], spec_path, cost, searched)
     if not carry:
         return line
     if line is None:
@@ -232,7 +237,7 @@ def summary_line(notes: list[Note], spec_path: str | None = None, cost: str | No
     return f"{line}; also, {carry}: the validation did not represent the test"
 
 
-def _useless_line(notes: list[Note], spec_path: str | None, cost: str | None) -> str | None:
+def _useless_line(notes: list[Note], spec_path: str | None, cost: str | None, searched: bool) -> str | None:
     poor = [n for n in notes if n.kind == "poor"]
     parts = []
     if poor:
@@ -244,7 +249,7 @@ def _useless_line(notes: list[Note], spec_path: str | None, cost: str | None) ->
     parts += [n.text for n in notes if n.kind not in ("poor", "diverged")]
     if not parts:
         return None
-    return f"this model is of little use: {'; '.join(parts)}. Fix: {what_to_try(spec_path, cost)}"
+    return f"this model is of little use: {'; '.join(parts)}. Fix: {what_to_try(spec_path, cost, searched)}"
 
 
 def stability_fix(hint: str, cost: str | None) -> str:

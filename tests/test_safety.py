@@ -465,3 +465,12 @@ def test_predict_keeps_the_time_column_and_says_where_the_plot_is(cli, fitted, t
     assert text[0] == "time,y" and text[1].startswith("12.5,")
     r = cli("predict", "m.h5", "--input", "run.csv", "--out", "p.csv")  # replaces its own prediction
     assert r.exit_code == 0, r.stderr
+
+
+def test_a_searched_model_of_little_use_is_not_told_to_try_the_search():
+    """After family: auto, 'try family: auto' is no advice; a larger budget or more data is."""
+    from dynmodel.usefulness import what_to_try
+
+    assert "family: auto" in what_to_try("s.yaml") or "another family" in what_to_try("s.yaml")
+    searched = what_to_try("s.yaml", searched=True)
+    assert "family: auto" not in searched and "budget" in searched and "dynmodel diagnose s.yaml" in searched

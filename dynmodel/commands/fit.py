@@ -81,7 +81,8 @@ class FitResult:
         """One line when the model is worse than a trivial reference or ignores its input (with what to try)."""
         from ..usefulness import summary_line
 
-        return summary_line(self.notes, self.spec_file, self.spec.cost)
+        searched = getattr(self.model, "search", None) is not None  # family: auto already searched
+        return summary_line(self.notes, self.spec_file, self.spec.cost, searched)
 
 
 def fit_and_save(

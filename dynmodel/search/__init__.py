@@ -90,8 +90,9 @@ def fit_auto(spec: Spec, ds: Dataset, progress: Progress = no_progress):
     record = result.record
     if model is None:
         if record.get("interrupted"):
+            scored = sum(1 for c in record.get("candidates", []) if c.get("levels"))
             raise SearchInterrupted(
-                "the search was interrupted before any candidate could be kept",
+                f"no model was kept: the search was {record['interrupted']} ({scored} candidates scored)",
                 f"{spec.source}: model",
                 "rerun it and let it finish, or give a smaller budget",
             )

@@ -312,22 +312,24 @@ class Search:
         got: dict[str, TaskResult] = {}
         n = len(tasks)
         self.progress("search", None, f"{stage}: {n} fits; {self._leader_text()}")
-        for r in run_specs(tasks, self.executor, keep_models=True, point=run_task, cancel=self._stopping):
-            got[r.key] = r  # type: ignore[assignment]
-            self._record(r)  # type: ignore[arg-type]
-            self.tasks_done += 1
-            done = self.budget.planned and min(1.0, self.tasks_done / max(self._planned_tasks, 1))
-            self.progress("search", done or None, f"{stage}: {len(got)}/{n}; {self._leader_text()}")
+        try:
+            for r in run_specs(tasks, self.executor, keep_models=True, point=run_task, cancel=self._stopping):
+                got[r.key] = r  # type: ignore[assignment]
+                self._record(r)  # type: ignore[arg-type]
+                self.tasks_done += 1
+                done = self.budget.planned and min(1.0, self.tasks_done / max(self._planned_tasks, 1))
+                self.progress("search", done or None, f"{stage}: {len(got)}/{n}; {self._leader_text()}")
+        finally:  # a Ctrl-C inside the stage still records how far it got
+            self.stages.append(
+                {
+                    "stage": stage,
+                    "tasks": n,
+                    "finished": len(got),
+                    "seconds": round(time.perf_counter() - t0, 3),
+                    "planned": round(self.budget.stages.get(stage, 0.0), 3),
+                }
+            )
         out = [got[t.key] for t in tasks if t.key in got]
-        self.stages.append(
-            {
-                "stage": stage,
-                "tasks": n,
-                "finished": len(out),
-                "seconds": round(time.perf_counter() - t0, 3),
-                "planned": round(self.budget.stages.get(stage, 0.0), 3),
-            }
-        )
         if self._stopping() and len(out) < n and self.interrupted is None:
             self.interrupted = "interrupted"
         return out
@@ -595,9 +597,21 @@ class Search:
             values.append(float(v))
         return float(np.mean(values)) if values else None
 
+    def _deciding_levels(self) -> dict[str, str]:
+        """Candidate -> the level of the score the choice compares: the full fits when one of them is usable
+        (the screening variants rank them coarsely). Otherwise every candidate at its deepest level: a search
+        stopped early may not have fitted the best screened candidates in full, and one whose screening fit
+        is already final must not win only because it looks fitted in full (a Ctrl-C after screening kept an
+        output-error model 100x worse than the NARX candidates screened); when every full fit was rejected,
+        the best screened candidate not yet fitted in full is (and is checked again)."""
+        if not self.interrupted and any(self._usable(k, "final") for k in self.entries):
+            return {k: "final" for k, e in self.entries.items() if "final" in e.summaries}
+        return {k: lv for k, e in self.entries.items() if (lv := e.best_level()) is not None}
+
     def decide(self) -> tuple[str | None, Choice, str]:
-        level = "final" if any("final" in e.summaries for e in self.entries.values()) else "screen"
-        summaries = {k: e.summaries[level] for k, e in self.entries.items() if level in e.summaries}
+        """(winner, the choice, the winner's level)."""
+        levels = self._deciding_levels()
+        summaries = {k: self.entries[k].summaries[lv] for k, lv in levels.items()}
         labels = {k: e.label for k, e in self.entries.items()}
         short = None
         if self.mode == "folds":
@@ -620,7 +634,7 @@ class Search:
         for k, e in self.entries.items():
             if k in choice.verdicts:
                 e.verdict = choice.verdicts[k]
-            elif level not in e.summaries and "screen" in e.summaries:
+            elif k not in levels and "screen" in e.summaries:
                 s = e.summaries["screen"]
                 if not s.finite:
                     e.verdict = f"screening: no usable fit ({s.status})"
@@ -628,6 +642,7 @@ class Search:
                     e.verdict = f"screening: rejected, {s.failure or 'leaves the output band'}"
                 else:
                     e.verdict = "screened out (validates worse)"
+        level = levels[choice.key] if choice.key else ("final" if "final" in levels.values() else "screen")
         return choice.key, choice, level
 
     def _final_model(self, key: str, level: str):
@@ -648,6 +663,13 @@ class Search:
         seed = s.median_seed if s.median_seed is not None else int(self.spec.seed)
         task = self._task(f"{e.cand.key}|model|full|{seed}", self.raw_for(e.cand, seed, False), "fit", Layout("full"))
         self._planned_tasks += 1
+        if self.interrupted:  # the user waits for this one fit: say so (on a long record it takes minutes)
+            self.progress(
+                "search",
+                None,
+                f"{self.interrupted}: fitting the best so far, {e.label}, on the whole training split "
+                "(Ctrl-C again stops without a model)",
+            )
         cancel_set = self.cancel.is_set()
         results = list(run_specs([task], self.executor, keep_models=True, point=run_task))
         if not results or results[0].model is None:
@@ -689,7 +711,10 @@ class Search:
             try:
                 model = self._final_model(key, level)
             except KeyboardInterrupt:
-                self.interrupted = "interrupted (Ctrl-C)"
+                self.interrupted = (
+                    f"interrupted (Ctrl-C) while the best candidate so far ({self.entries[key].label}) was fitted "
+                    "on the whole training split"
+                )
                 model = None
                 break
             if model is not None:

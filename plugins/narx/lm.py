@@ -42,7 +42,7 @@ class LMResult:
     cost: float  # 0.5 ||r(x)||^2, as scipy reports it
     nfev: int
     njev: int
-    status: int  # as scipy's: 0 max_nfev, 1 gtol, 2 ftol, 3 xtol, 4 ftol and xtol
+    status: int  # as scipy's: 0 max_nfev, 1 gtol, 2 ftol, 3 xtol, 4 ftol and xtol; -1 a Jacobian not finite
     message: str
 
 
@@ -133,6 +133,10 @@ def levenberg_marquardt(
     while status == 0 and nfev < max_nfev:
         R, q = r_factor(jac(x), r)
         njev += 1
+        if not (np.isfinite(R).all() and np.isfinite(q).all()):
+            # the free run's sensitivities overflowed (a run near divergence): no step can be computed, keep x
+            status, message = -1, "the Jacobian is not finite at the current weights"
+            break
         norms = np.linalg.norm(R, axis=0)  # = the Jacobian's column norms (J = QR, Q orthonormal)
         if D is None:
             D = np.where(norms > 0, norms, 1.0)
