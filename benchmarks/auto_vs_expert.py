@@ -236,7 +236,7 @@ def main() -> None:
     )
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    from dynmodel.search.params import searchable_families
+    from dynmodel.search import searchable_families
 
     # the figures depend on what is installed: a third-party family (e.g. examples/dynmodel-arx) takes part
     installed = searchable_families()

@@ -96,14 +96,9 @@ def test_a_budget_that_allows_it_fits_every_candidate_screened_near_the_best_in_
     near = {k for k, v in screened.items() if v <= SURVIVOR_FACTOR * best}
     # fitted in the full stage: a candidate screened in its full variant on the final layout (the linear output
     # error one) is final from its screening on
-    reused = record["layouts"]["screen"] == record["layouts"]["final"]
-    cheap = {c["key"] for c in record["candidates"] if c["screen"] or c["screen_cost"] not in (None, c["cost"])}
-    full = {
-        c["key"]
-        for c in record["candidates"]
-        if c["key"] in screened and "final" in c["levels"] and (c["key"] in cheap or not reused)
-    }
-    near = {k for k in near if k in cheap or not reused}
+    refit = {c["key"] for c in record["candidates"] if not c["screen_is_final"]}
+    full = {c["key"] for c in record["candidates"] if c["key"] in screened and "final" in c["levels"]} & refit
+    near &= refit
     assert record["budget"]["planned"] < 0.5 * record["budget"]["allowance"]  # the budget was not the limit
     assert len(near) > SURVIVORS
     assert full == near < set(screened)  # the far ones (the linear model here) are not refitted

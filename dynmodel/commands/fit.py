@@ -81,8 +81,7 @@ class FitResult:
         """One line when the model is worse than a trivial reference or ignores its input (with what to try)."""
         from ..usefulness import summary_line
 
-        searched = getattr(self.model, "search", None) is not None  # family: auto already searched
-        return summary_line(self.notes, self.spec_file, self.spec.cost, searched)
+        return summary_line(self.notes, self.spec_file, self.spec.cost, searched=self.model.search is not None)
 
 
 def fit_and_save(

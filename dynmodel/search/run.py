@@ -104,6 +104,7 @@ class Entry:
         out = self.cand.to_json()
         out["origin"] = self.origin
         out["verdict"] = self.verdict
+        out["screen_is_final"] = self.reuse_screen
         out["levels"] = {k: s.to_json() for k, s in self.summaries.items()}
         level = self.best_level()
         out["validation_nmse"] = (

@@ -11,7 +11,7 @@ on the free run (``cost: mse_inf``). So the starting candidates vary what the de
   slow, smooth systems such as cascaded tanks);
 * a linear model with long lags (an ARX / output-error reference the nonlinear ones must beat);
 * a second-order linear output-error model run from rest and unclipped (``initial: zeros``, every term,
-  ``bounds: null``, screened on the free run too): started from rest, its level must come from the
+  no output bounds, screened on the free run too): started from rest, its level must come from the
   inputs, not from measured initial outputs it could carry over, so it transfers to a recording at
   another operating condition (the pneumatic seal trained at 1, 3 and 7 bar: every other candidate,
   clipped and carrying its level, failed on each left-out pressure).
