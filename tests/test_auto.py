@@ -448,6 +448,41 @@ def test_the_screening_view_keeps_the_last_training_samples(tmp_path):
     assert sum(b - a for _, a, b in v.ranges["validation"]) == 1080
 
 
+def test_long_data_without_a_validation_split_is_ranked_on_a_held_out_tail(tmp_path, monkeypatch):
+    """A training-only split too long to cross-validate was ranked on the training error, and candidates that
+    stop on a validation split (the narx default's FOS) failed without a word; the last block of the
+    training is now held out, and the model kept is the one validated there."""
+    import dynmodel.search.run as search_run
+
+    monkeypatch.setattr(search_run, "CV_MAX", 1000)  # 3600 samples count as long
+    monkeypatch.setattr(search_run, "SCREEN_SAMPLES", 1500)
+    _data(tmp_path)
+    raw = _raw(families=["narx"], budget=4)
+    raw["data"]["split"] = {"train": 1.0}
+    ds = load_dataset(validate_spec(raw, "<test>", tmp_path))
+    screened = view(ds, Layout("fold", samples=1500, fold=4, folds=5))
+    assert screened.ranges["train"] == [(0, 0, 1500)] and screened.ranges["validation"] == [(0, 1500, 2220)]
+    np.testing.assert_array_equal(screened.recordings[0].u[0], ds.recordings[0].u[1380])
+    model, _ = _fit(raw, tmp_path)
+    rec = model.search
+    assert rec["mode"] == "tail" and rec["folds"] == 5
+    assert rec["layouts"]["final"] == [Layout("fold", fold=4, folds=5).to_json()]
+    assert rec["layouts"]["screen"] == [Layout("fold", samples=1500, fold=4, folds=5).to_json()]
+    assert any("there is no validation split" in n for n in rec["notes"])
+    default = next(c for c in rec["candidates"] if c["summary"].endswith("(the default)"))
+    assert default["levels"] and all(math.isfinite(v["score"]) for v in default["levels"].values())
+    winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
+    held_out = winner["levels"]["final"]["score"]
+    assert 0 < held_out < 5.0 and model.metrics["test"]["nmse"] < 5.0
+    # the model kept is the fit validated on the tail: its free run over that tail scores what the search saw
+    tail = view(ds, Layout("fold", fold=4, folds=5))
+    ((r, a, b),) = tail.ranges["validation"]
+    rec0 = tail.recordings[r]
+    y = model.run(rec0.u, rec0.y[: model.warmup] if model.warmup else None).y
+    err = np.mean((y[a:b, 0] - rec0.y[a:b, 0]) ** 2) / np.var(rec0.y[a:b, 0]) * 100
+    assert err == pytest.approx(held_out, rel=1e-6)
+
+
 def test_several_recordings_are_each_left_out_in_turn(tmp_path):
     """Three training recordings (runs at other conditions, here other realizations): each is validated by a
     model trained on the other two, so the ranking says how a model carries over to a recording it has not

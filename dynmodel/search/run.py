@@ -155,8 +155,10 @@ def _in_worker() -> bool:
 def context(
     spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | None
 ) -> tuple[SearchContext, str, str | None]:
-    """The search context, the layout kind ('holdout', 'folds' or 'recordings') and why the validation is
-    short. Several recordings (three or more with fitting data): each left out in turn ('recordings')."""
+    """The search context, the layout kind and why the validation is short. 'recordings': three or more
+    recordings with fitting data, each left out in turn; 'folds': blocked cross-validation of short data;
+    'tail': long data without a validation split, ranked on the last of :data:`FOLDS` blocks held out (the
+    context's sample counts are that fold's); 'holdout': the spec's own validation split."""
     n_train, n_val = ds.n_scored("train"), ds.n_scored("validation") if ds.ranges.get("validation") else 0
     from ..protocol import allowed_warmup
 
@@ -166,7 +168,12 @@ def context(
     short = None
     if n_val < CV_BELOW:
         short = f"the validation split has only {n_val} scored samples" if n_val else "there is no validation split"
-    small = short is not None and n_train + n_val <= CV_MAX and possible_folds(ds, FOLDS) >= 2
+    folds = possible_folds(ds, FOLDS)
+    small = short is not None and n_train + n_val <= CV_MAX and folds >= 2
+    mode = "recordings" if possible_recording_folds(ds) else ("folds" if small else "holdout")
+    if mode == "holdout" and n_val == 0 and folds >= 2:
+        mode = "tail"  # ranked on the last block held out, never on the training error
+        n_train, n_val = n_train - n_train // folds, n_train // folds
     data = dict(spec.resolved()["data"])
     ctx = SearchContext(
         input_names=tuple(ds.input_names),
@@ -182,7 +189,6 @@ def context(
         cost=written_cost,
         budget=float(params.budget),
     )
-    mode = "recordings" if possible_recording_folds(ds) else ("folds" if small else "holdout")
     return ctx, mode, short
 
 
@@ -215,16 +221,22 @@ class Search:
         self.started = time.monotonic()
         self.tasks_done = 0
         kind = "recording" if self.mode == "recordings" else "fold"
-        folds = {"folds": possible_folds(ds, FOLDS), "recordings": possible_recording_folds(ds)}.get(self.mode, 0)
-        self.folds = folds
+        folds = possible_recording_folds(ds) if self.mode == "recordings" else possible_folds(ds, FOLDS)
+        self.folds = folds = folds if self.mode != "holdout" else 0
         n_screen = min(SCREEN_SAMPLES, self.ctx.n_train)
-        used = validated_folds(ds, folds) if self.mode == "folds" else list(range(folds))
-        self.screen_layouts = (
-            [Layout(kind, fold=i, folds=folds) for i in used]
-            if folds
-            else [Layout("screen", samples=n_screen) if n_screen < self.ctx.n_train else Layout("full")]
-        )
-        self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used] if folds else [Layout("full")]
+        cut = n_screen if n_screen < self.ctx.n_train else 0
+        if self.mode == "tail":  # the last block held out; screened on part of the rest as 'screen' is
+            self.notes.append(tail_note(folds))
+            self.screen_layouts = [Layout("fold", samples=cut, fold=folds - 1, folds=folds)]
+            self.final_layouts = [Layout("fold", fold=folds - 1, folds=folds)]
+        else:
+            used = validated_folds(ds, folds) if self.mode == "folds" else list(range(folds))
+            self.screen_layouts = (
+                [Layout(kind, fold=i, folds=folds) for i in used]
+                if folds
+                else [Layout("screen", samples=cut) if cut else Layout("full")]
+            )
+            self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used] if folds else [Layout("full")]
         self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
         self.base = self._base_spec()
 
@@ -249,7 +261,7 @@ class Search:
         return [_seed_for(self.spec.seed, entry.cand.key, i) for i in range(count)]
 
     def _n_layout(self, layout: Layout) -> int:
-        if layout.kind == "screen":
+        if layout.samples:
             return layout.samples
         if layout.kind in ("fold", "recording"):
             return int((self.ctx.n_train + self.ctx.n_validation) * (layout.folds - 1) / layout.folds)
@@ -622,7 +634,7 @@ class Search:
                 f"the {self.folds} training recordings were each left out in turn (a validation split taken from "
                 "the same recordings cannot tell how a model carries over to another recording)"
             )
-        elif self.short:
+        elif self.short and self.mode != "tail":
             short = self.short
         choice = choose(
             summaries,
@@ -650,7 +662,7 @@ class Search:
         """The winner's FittedModel on the spec's own layout (re-evaluated by the caller)."""
         e = self.entries[key]
         s = e.summaries[level]
-        if level == "final" and not self.folds:
+        if level == "final" and self.mode in ("holdout", "tail"):  # the fit validated is the model
             pick = next(
                 (
                     r
@@ -662,7 +674,8 @@ class Search:
             if pick is not None:
                 return self.kept[pick.key].to_model()
         seed = s.median_seed if s.median_seed is not None else int(self.spec.seed)
-        task = self._task(f"{e.cand.key}|model|full|{seed}", self.raw_for(e.cand, seed, False), "fit", Layout("full"))
+        layout = self.final_layouts[0] if self.mode == "tail" else Layout("full")
+        task = self._task(f"{e.cand.key}|model|{layout.label}|{seed}", self.raw_for(e.cand, seed, False), "fit", layout)
         self._planned_tasks += 1
         if self.interrupted:  # the user waits for this one fit: say so (on a long record it takes minutes)
             self.progress(
@@ -774,6 +787,16 @@ class Search:
         }
 
 
+def tail_note(folds: int, planned: bool = False) -> str:
+    """Why and how a search without a validation split ranks its candidates (mode 'tail')."""
+    are, is_ = ("are", "is") if planned else ("were", "was")
+    return (
+        f"there is no validation split: the candidates {are} ranked on their free run over the last 1/{folds} "
+        f"of every training recording, held out from their fits, and the chosen one {is_} kept as fitted on the "
+        "rest (add a validation split, e.g. split: {train: 0.8, validation: 0.2}, to choose where it lies)"
+    )
+
+
 def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
     """What ``dynmodel validate`` says about an auto spec: the families, the budget, the layout, the
     protocol limits and the starting candidates (nothing is fitted)."""
@@ -797,6 +820,8 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
             f"ranking: free-run NMSE on each of the {possible_recording_folds(ds)} training recordings in turn, "
             "the model trained on the others (leave one recording out)"
         )
+    elif mode == "tail":
+        lines.append(f"ranking: {tail_note(possible_folds(ds, FOLDS), planned=True)}")
     else:
         n = min(SCREEN_SAMPLES, ctx.n_train)
         lines.append(

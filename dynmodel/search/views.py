@@ -41,7 +41,7 @@ MIN_RECORDINGS = 3
 @dataclass(frozen=True)
 class Layout:
     kind: str = "full"  # "full" | "screen" | "fold" | "recording"
-    samples: int = 0  # screen: training samples kept
+    samples: int = 0  # screen (and a screened fold): training samples kept; 0 all
     fold: int = 0
     folds: int = 0
 
@@ -50,7 +50,8 @@ class Layout:
         if self.kind == "screen":
             return f"screen ({self.samples} training samples)"
         if self.kind == "fold":
-            return f"fold {self.fold + 1}/{self.folds}"
+            cut = f" ({self.samples} training samples)" if self.samples else ""
+            return f"fold {self.fold + 1}/{self.folds}{cut}"
         if self.kind == "recording":
             return f"recording {self.fold + 1}/{self.folds} left out"
         return "full"
@@ -204,7 +205,8 @@ def view(ds: Dataset, layout: Layout) -> Dataset:
     if layout.kind == "screen":
         return screen(ds, layout.samples)
     if layout.kind == "fold":
-        return fold(ds, layout.fold, layout.folds)
+        out = fold(ds, layout.fold, layout.folds)
+        return screen(out, layout.samples) if layout.samples else out
     if layout.kind == "recording":
         return recording_fold(ds, layout.fold)
     return fit_part(ds)
