@@ -4,10 +4,22 @@ The *band check*: the candidate's free run on the inputs of every split (trainin
 set) must stay inside the training output range widened by :data:`BAND` of its width on each side. A run
 that leaves it diverges or extrapolates wildly where the data give no evidence; a run held at an output
 clip set at (or beyond) that band counts as leaving it (the clip hides the divergence). Test outputs are
-never read: a recording that starts inside a test split starts from the measured outputs of its
-initialization window when the protocol declares one that covers the model's tune-in, and from rest (every
-past output at the training mean) otherwise. That from-rest run is also what a protocol without a window
-scores.
+never read. What counts as leaving:
+
+* a non-finite output, or one beyond an outer band of :data:`OUTER_BAND` widths on each side;
+* more than :data:`BRIEF` samples in a row, or more than :data:`STRAY` of the scored samples, outside the
+  band.
+
+A diverging run does not come back (a run held at an output clip stays at the band's edge), so it fails;
+a model that overshoots a peak for a few samples passes. On 300 training samples tested on 4000, the band
+had rejected the NARX default (1.6 % test NMSE) for a two-sample overshoot of fold models, and kept a
+network with 18 %. Where a test input goes beyond the training input range, the band is not widened:
+forgiving a run there while that input lies beyond (EMPS: 58 %) let a NARX model drift to 143 mm test
+RMSE where the band kept one with 10.5 mm.
+
+A recording that starts inside a test split starts from the measured outputs of its initialization window
+when the protocol declares one that covers the model's tune-in, and from rest (every past output at the
+training mean) otherwise. That from-rest run is also what a protocol without a window scores.
 
 The *input dependence* (:func:`dynmodel.usefulness.input_dependence`, on the view's validation split): a
 model whose free run barely moves when the input is held at its mean ignores its input.
@@ -27,15 +39,51 @@ BAND = 0.5
 #: a run within this fraction of the band's margin from its edge counts as having reached it (an output
 #: clip at exactly the band holds a diverging run there)
 EDGE = 0.02
+#: the outer band, in training output range widths on each side
+OUTER_BAND = 2 * BAND
+#: a run may leave the band for at most this many samples in a row ...
+BRIEF = 20
+#: ... and this fraction of the scored samples
+STRAY = 0.01
+
+
+def _output_range(ds: Dataset) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(low, high, width) of the training outputs, per output."""
+    y = ds.concat_outputs("train")
+    lo, hi = np.nanmin(y, axis=0), np.nanmax(y, axis=0)
+    return lo, hi, np.maximum(hi - lo, np.finfo(float).tiny)
 
 
 def band(ds: Dataset) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) per output: the training output range widened by BAND x its width, less the edge."""
-    y = ds.concat_outputs("train")
-    lo, hi = np.nanmin(y, axis=0), np.nanmax(y, axis=0)
-    width = np.maximum(hi - lo, np.finfo(float).tiny)
+    lo, hi, width = _output_range(ds)
     margin = BAND * (1.0 - EDGE) * width
     return lo - margin, hi + margin
+
+
+def _longest_run(mask: np.ndarray) -> int:
+    """The longest stretch of consecutive True in ``mask``."""
+    if not mask.any():
+        return 0
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return int((edges[1::2] - edges[::2]).max())
+
+
+def _leaves(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray, width: np.ndarray) -> int | None:
+    """The first sample where the run ``seg`` counts as leaving the band (lo, hi) (see the module
+    docstring), or None; ``width``: the training output range's."""
+    with np.errstate(invalid="ignore"):
+        finite = np.isfinite(seg).all(axis=1)
+        outside = ~finite | ((seg < lo) | (seg > hi)).any(axis=1)
+        if not outside.any():
+            return None
+        margin = (OUTER_BAND - BAND * (1.0 - EDGE)) * width
+        far = ~finite | ((seg < lo - margin) | (seg > hi + margin)).any(axis=1)
+    if far.any():
+        return int(np.argmax(far))
+    if _longest_run(outside) > BRIEF or outside.sum() > STRAY * len(seg):
+        return int(np.argmax(outside))
+    return None
 
 
 def _fit_rows(ds: Dataset) -> set[tuple[int, int]]:
@@ -61,6 +109,7 @@ def band_checks(model: FittedModel, ds: Dataset) -> dict[str, Any]:
     """Per split: ``{"ok": bool, "start": how runs started, "sample": first sample outside the band or None,
     "recording": its name}`` plus ``"ok"`` over all splits. Runs every recording once."""
     lo, hi = band(ds)
+    width = _output_range(ds)[2]
     train_mean = np.nanmean(ds.concat_outputs("train"), axis=0)
     warm = model.warmup
     owner: dict[int, str] = {}
@@ -83,10 +132,9 @@ def band_checks(model: FittedModel, ds: Dataset) -> dict[str, Any]:
         for rec, a, b in ds.scored(split, warm):
             y, how = runs[rec]
             entry["start"] = entry["start"] or how
-            seg = y[a:b]
-            bad = ~np.isfinite(seg).all(axis=1) | ((seg < lo) | (seg > hi)).any(axis=1)
-            if bad.any():
-                entry.update(ok=False, sample=int(a + np.argmax(bad)), recording=ds.recordings[rec].name)
+            first = _leaves(y[a:b], lo, hi, width)
+            if first is not None:
+                entry.update(ok=False, sample=a + first, recording=ds.recordings[rec].name)
                 break
         out[split] = entry
         out["ok"] = out["ok"] and entry["ok"]
