@@ -375,6 +375,34 @@ def test_ctrl_c_after_screening_compares_every_candidate_screened(tmp_path):
     assert chosen <= 1.1 * min(score for score, _, _ in deepest)
 
 
+def test_the_safety_limit_keeps_the_screening_fit_and_ends_without_an_error(tmp_path, cli, monkeypatch):
+    """At the safety limit the search ends near it: the leader's screening fit is the model (its refit on the
+    whole training split took as long again: 528 s for a limit of 210 s on 150k samples), a note says so,
+    and fit exits 0 (the user did not interrupt it: 130 is Ctrl-C's)."""
+    import dynmodel.search.run as search_run
+
+    monkeypatch.setattr(search_run, "SCREEN_SAMPLES", 1000)  # screened on part of the 2520 training samples
+    grow = search_run.Search._stage_grow
+
+    def limit_reached(self):  # the wall-time limit is reached as screening ends
+        monkeypatch.setattr(search_run, "HARD_LIMIT", 0.0)
+        monkeypatch.setattr(search_run, "HARD_SLACK", 0.0)
+        return grow(self)
+
+    monkeypatch.setattr(search_run.Search, "_stage_grow", limit_reached)
+    _data(tmp_path)
+    write_yaml(tmp_path / "s.yaml", _raw(families=["narx"], budget=30))
+    res = cli("fit", tmp_path / "s.yaml", "--out", tmp_path / "m.h5", "--json", tmp_path / "m.json")
+    assert res.exit_code == 0, res.output
+    assert "note: the search stopped at the safety limit" in res.output
+    rec = json.loads((tmp_path / "m.json").read_text())["search"]
+    assert rec["safety_limit"] and not any(s["stage"] == "full" for s in rec["stages"])
+    assert any("as screened (screen (1000 training samples)" in n for n in rec["notes"])
+    winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
+    assert winner["screen_cost"] == "mse1" and winner["cost"] == "mse_inf"  # a cheap screening variant ...
+    assert dynmodel.load(tmp_path / "m.h5").spec["cost"] == "mse1"  # ... kept as it is, not refitted in full
+
+
 def test_the_result_is_the_same_with_one_and_two_workers(tmp_path):
     _data(tmp_path)
     one, _ = _fit(_raw(families=["narx", "esn"]), tmp_path, workers=1)

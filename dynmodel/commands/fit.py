@@ -56,13 +56,14 @@ class FitResult:
         return payload
 
     def problem(self) -> DynmodelError | None:
-        """The error a command should end with: the search was interrupted, or the free run diverged
-        (exit 1; the model was saved all the same); None when the fit is sound."""
+        """The error a command should end with: the user interrupted the search (the safety limit is a note),
+        or the free run diverged (exit 1; the model was saved all the same); None when the fit is sound."""
         from ..usefulness import stability_fix
 
-        if self.model.search is not None and self.model.search.get("interrupted"):
+        search = self.model.search
+        if search is not None and search.get("interrupted") and not search.get("safety_limit"):  # a note says so
             return Interrupted(
-                f"the search was {self.model.search['interrupted']}; the best model so far was saved",
+                f"the search was {search['interrupted']}; the best model so far was saved",
                 self.spec_file,
                 "rerun to search the rest of the budget (the same seed gives the same search)",
             )
