@@ -152,6 +152,15 @@ def _in_worker() -> bool:
     return False
 
 
+def _progress_span(stage: str) -> tuple[float, float]:
+    """The share of the progress bar a stage fills (stages run in this order, so it never goes back; the
+    search plans each stage from the last one's results, so a share of the fits to come cannot be known)."""
+    if stage.startswith("moves"):
+        r = int(stage.split()[1].rstrip(":")) - 1
+        return 0.8 + 0.2 * r / MOVE_ROUNDS, 0.8 + 0.2 * (r + 1) / MOVE_ROUNDS
+    return {"screen": (0.0, 0.3), "grow": (0.3, 0.5), "full": (0.5, 0.8)}[stage]
+
+
 def context(
     spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | None
 ) -> tuple[SearchContext, str, str | None]:
@@ -220,7 +229,6 @@ class Search:
         self.interrupted: str | None = None
         self.limited = False  # stopped at the safety limit (not by the user)
         self.started = time.monotonic()
-        self.tasks_done = 0
         kind = "recording" if self.mode == "recordings" else "fold"
         folds = possible_recording_folds(ds) if self.mode == "recordings" else possible_folds(ds, FOLDS)
         self.folds = folds = folds if self.mode != "holdout" else 0
@@ -331,9 +339,10 @@ class Search:
             for r in run_specs(tasks, self.executor, keep_models=True, point=run_task, cancel=self._stopping):
                 got[r.key] = r  # type: ignore[assignment]
                 self._record(r)  # type: ignore[arg-type]
-                self.tasks_done += 1
-                done = self.budget.planned and min(1.0, self.tasks_done / max(self._planned_tasks, 1))
-                self.progress("search", done or None, f"{stage}: {len(got)}/{n}; {self._leader_text()}")
+                lo, hi = _progress_span(stage)
+                self.progress(
+                    "search", lo + (hi - lo) * len(got) / n, f"{stage}: {len(got)}/{n}; {self._leader_text()}"
+                )
         finally:  # a Ctrl-C inside the stage still records how far it got
             self.stages.append(
                 {
@@ -348,8 +357,6 @@ class Search:
         if self._stopping() and len(out) < n and self.interrupted is None:
             self.interrupted = "interrupted"
         return out
-
-    _planned_tasks = 1
 
     def _record(self, r: TaskResult) -> None:
         if r.kind == "reference":
@@ -481,7 +488,6 @@ class Search:
             for layout in (self.final_layouts if self.folds else [Layout("full")])
         ]
         tasks = refs + [t for g in taken for t in g.tasks]
-        self._planned_tasks = len(tasks)
         self._run("screen", tasks)
         for e in entries:
             if "screen" not in e.summaries:
@@ -502,7 +508,6 @@ class Search:
                     new.append(entry)
         groups = [self._group(e, "screen", self.seeds_of(e, 1)) for e in new]
         taken = self.budget.take("grow", groups, minimum=0)
-        self._planned_tasks += sum(len(g.tasks) for g in taken)
         self._run("grow", [t for g in taken for t in g.tasks])
         for e in new:
             if "screen" not in e.summaries:
@@ -524,7 +529,6 @@ class Search:
         # a second chance never takes the place of a survivor that passed its screening band check
         least += sum(1 for k in keys if self._second_chance(k))
         taken = self.budget.take("full", groups, minimum=min(least, len(groups)))
-        self._planned_tasks += sum(len(g.tasks) for g in taken)
         self._run("full", [t for g in taken for t in g.tasks])
 
     def _stage_moves(self) -> None:
@@ -544,7 +548,6 @@ class Search:
             )
             if not self.budget.take("moves", [diag], minimum=0):
                 return
-            self._planned_tasks += 1
             results = self._run(f"moves {round_ + 1}: diagnose the leader", diag.tasks)
             if not results or results[0].status != "ok" or not results[0].proposals:
                 return
@@ -564,8 +567,7 @@ class Search:
             taken = self.budget.take("moves", groups, minimum=0)
             if not taken:
                 return
-            self._planned_tasks += sum(len(g.tasks) for g in taken)
-            self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks])
+                self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks])
             if self.ranking("final")[:1] == ranked[:1]:
                 return  # no move beat the leader
 
@@ -687,7 +689,6 @@ class Search:
         seed = s.median_seed if s.median_seed is not None else int(self.spec.seed)
         layout = self.final_layouts[0] if self.mode == "tail" else Layout("full")
         task = self._task(f"{e.cand.key}|model|{layout.label}|{seed}", self.raw_for(e.cand, seed, False), "fit", layout)
-        self._planned_tasks += 1
         if self.interrupted:  # the user waits for this one fit: say so (on a long record it takes minutes)
             self.progress(
                 "search",
