@@ -403,6 +403,30 @@ def test_the_safety_limit_keeps_the_screening_fit_and_ends_without_an_error(tmp_
     assert dynmodel.load(tmp_path / "m.h5").spec["cost"] == "mse1"  # ... kept as it is, not refitted in full
 
 
+def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):
+    """The moves stage fits what the diagnosis of the leader proposes. The detectors propose nothing on this
+    generated system, so the diagnosis (run in this process with one worker) also returns a proposal of its
+    own: a delay line of the input, through the same patch path a detector's proposal takes."""
+    import dynmodel.search.worker as search_worker
+
+    diagnose = search_worker._diagnose
+
+    def with_a_proposal(task, spec, ds, result):
+        diagnose(task, spec, ds, result)
+        result.proposals = [
+            *result.proposals,
+            {"cause": "test-delay", "summary": "a delay line of u", "patch": {"data": {"delay_lines": [3]}}},
+        ]
+
+    monkeypatch.setattr(search_worker, "_diagnose", with_a_proposal)
+    _data(tmp_path)
+    model, _ = _fit(_raw(families=["narx"], budget=30), tmp_path)
+    rec = model.search
+    assert any(s["stage"] == "moves 1" and s["finished"] == s["tasks"] > 0 for s in rec["stages"])
+    moved = [c for c in rec["candidates"] if c["origin"].endswith(": test-delay")]
+    assert moved and "final" in moved[0]["levels"] and moved[0]["data"] == {"delay_lines": [3]}
+
+
 def test_the_result_is_the_same_with_one_and_two_workers(tmp_path):
     _data(tmp_path)
     one, _ = _fit(_raw(families=["narx", "esn"]), tmp_path, workers=1)
@@ -538,6 +562,36 @@ def test_several_recordings_are_each_left_out_in_turn(tmp_path):
     assert [lay["kind"] for lay in rec["layouts"]["final"]] == ["recording"] * 3
     assert any("left out in turn" in n for n in rec["notes"]) or rec["cautious"]
     assert model.metrics["validation"]["nmse"] < 0.5  # the winner, refitted on the spec's own splits
+
+
+def test_long_recordings_left_out_in_turn_are_screened_on_part_of_the_others(tmp_path, monkeypatch):
+    """Left out in turn, every screening fit trained on all the other recordings (on three recordings of 50000
+    samples, screening alone took 520 s of a 300 s budget); long ones are screened on the last samples of
+    the others, as the holdout is, and the survivors fitted on all of them."""
+    import dynmodel.search.run as search_run
+
+    monkeypatch.setattr(search_run, "SCREEN_SAMPLES", 500)  # 1800 training samples per fold count as long
+    for i, seed in enumerate((11, 12, 13)):
+        u, y = narx(900, seed)
+        write_csv(tmp_path / f"run{i}.csv", {"u": u, "y": y})
+    raw = _raw(families=["narx"], budget=2)
+    raw["data"] = {"path": [f"run{i}.csv" for i in range(3)], "input": ["u"], "output": ["y"]}
+    raw["data"]["split"] = {"train": 0.7, "validation": 0.3}
+    ds = load_dataset(validate_spec(raw, "<test>", tmp_path))
+    v = view(ds, Layout("recording", samples=500, fold=1, folds=3))
+    assert sum(b - a for _, a, b in v.ranges["train"]) == 500
+    ((r, a, b),) = v.ranges["validation"]
+    assert b - a == 900 and v.recordings[r].name == ds.recordings[1].name  # still all of the one left out
+    by_name = {rec.name: rec for rec in ds.recordings}
+    for r2, a, b in v.ranges["train"]:  # the last samples of each of the others
+        piece, whole = v.recordings[r2].u[a:b], by_name[v.recordings[r2].name].u
+        np.testing.assert_array_equal(piece, whole[len(whole) - (b - a) :])
+    model, _ = _fit(raw, tmp_path)
+    rec = model.search
+    assert rec["layouts"]["screen"] == [Layout("recording", samples=500, fold=i, folds=3).to_json() for i in range(3)]
+    assert rec["layouts"]["final"] == [Layout("recording", fold=i, folds=3).to_json() for i in range(3)]
+    assert any("final" in c["levels"] for c in rec["candidates"])  # survivors fitted on all the others
+    assert model.metrics["validation"]["nmse"] < 0.5
 
 
 def _operating_point(pressure: float, n: int, seed: int) -> dict[str, np.ndarray]:

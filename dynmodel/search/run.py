@@ -240,12 +240,17 @@ class Search:
             self.final_layouts = [Layout("fold", fold=folds - 1, folds=folds)]
         else:
             used = validated_folds(ds, folds) if self.mode == "folds" else list(range(folds))
+            self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used] if folds else [Layout("full")]
+            # long recordings left out in turn are screened on part of the others, as the holdout is
+            per_fold = self._n_layout(self.final_layouts[0]) if self.mode == "recordings" else 0
             self.screen_layouts = (
-                [Layout(kind, fold=i, folds=folds) for i in used]
+                [
+                    Layout(kind, samples=SCREEN_SAMPLES if per_fold > SCREEN_SAMPLES else 0, fold=i, folds=folds)
+                    for i in used
+                ]
                 if folds
                 else [Layout("screen", samples=cut) if cut else Layout("full")]
             )
-            self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used] if folds else [Layout("full")]
         self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
         self.base = self._base_spec()
 
@@ -567,7 +572,7 @@ class Search:
             taken = self.budget.take("moves", groups, minimum=0)
             if not taken:
                 return
-                self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks])
+            self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks])
             if self.ranking("final")[:1] == ranked[:1]:
                 return  # no move beat the leader
 

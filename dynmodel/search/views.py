@@ -2,7 +2,7 @@
 
 A view keeps the training and validation samples of the dataset and drops every other split (test sets),
 so a fit inside the search cannot read a test output: the search's checks on test *inputs* run separately
-(:mod:`.checks`). Three layouts:
+(:mod:`.checks`). The layouts:
 
 * ``full``: the spec's own training and validation splits;
 * ``screen``: the same, with the training split cut to its last ``samples`` samples (spread over the
@@ -18,7 +18,12 @@ so a fit inside the search cannot read a test output: the search's checks on tes
   :data:`MIN_RECORDINGS` or more recordings (runs at other operating conditions: other pressures, loads,
   amplitudes). Fold ``i`` validates on all of recording ``i``'s training and validation samples, trained
   on the other recordings': how well a model carries over to a recording it has not seen, which is what
-  a test recording asks and a validation split taken from the same recordings cannot tell.
+  a test recording asks and a validation split taken from the same recordings cannot tell;
+* ``fold k of k`` alone: long data without a validation split (the spec's split is training only) are
+  ranked on the last block of every span, held out, never on the training error.
+
+A fold or a recording left out can also cut its training to its last ``samples`` samples, as ``screen``
+does: the screening variant on long data.
 
 Every layout is a deterministic function of the dataset and its arguments.
 """
@@ -41,7 +46,7 @@ MIN_RECORDINGS = 3
 @dataclass(frozen=True)
 class Layout:
     kind: str = "full"  # "full" | "screen" | "fold" | "recording"
-    samples: int = 0  # screen (and a screened fold): training samples kept; 0 all
+    samples: int = 0  # screen, and a screened fold or recording left out: training samples kept; 0 all
     fold: int = 0
     folds: int = 0
 
@@ -53,7 +58,8 @@ class Layout:
             cut = f" ({self.samples} training samples)" if self.samples else ""
             return f"fold {self.fold + 1}/{self.folds}{cut}"
         if self.kind == "recording":
-            return f"recording {self.fold + 1}/{self.folds} left out"
+            cut = f" ({self.samples} training samples)" if self.samples else ""
+            return f"recording {self.fold + 1}/{self.folds} left out{cut}"
         return "full"
 
     def to_json(self) -> dict[str, Any]:
@@ -204,9 +210,7 @@ def view(ds: Dataset, layout: Layout) -> Dataset:
     """The dataset a candidate is fitted on under ``layout``."""
     if layout.kind == "screen":
         return screen(ds, layout.samples)
-    if layout.kind == "fold":
-        out = fold(ds, layout.fold, layout.folds)
+    if layout.kind in ("fold", "recording"):
+        out = fold(ds, layout.fold, layout.folds) if layout.kind == "fold" else recording_fold(ds, layout.fold)
         return screen(out, layout.samples) if layout.samples else out
-    if layout.kind == "recording":
-        return recording_fold(ds, layout.fold)
     return fit_part(ds)
