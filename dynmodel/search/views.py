@@ -52,15 +52,12 @@ class Layout:
 
     @property
     def label(self) -> str:
-        if self.kind == "screen":
-            return f"screen ({self.samples} training samples)"
-        if self.kind == "fold":
-            cut = f" ({self.samples} training samples)" if self.samples else ""
-            return f"fold {self.fold + 1}/{self.folds}{cut}"
-        if self.kind == "recording":
-            cut = f" ({self.samples} training samples)" if self.samples else ""
-            return f"recording {self.fold + 1}/{self.folds} left out{cut}"
-        return "full"
+        name = {
+            "screen": "screen",
+            "fold": f"fold {self.fold + 1}/{self.folds}",
+            "recording": f"recording {self.fold + 1}/{self.folds} left out",
+        }.get(self.kind, "full")
+        return f"{name} ({self.samples} training samples)" if self.samples else name
 
     def to_json(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
