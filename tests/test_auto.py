@@ -535,18 +535,23 @@ def test_long_data_without_a_validation_split_is_ranked_on_a_held_out_tail(tmp_p
     assert err == pytest.approx(held_out, rel=1e-6)
 
 
+def _three_recordings(tmp_path: Path, budget: float) -> tuple[dict[str, Any], Any]:
+    """Three training recordings of 900 samples (other realizations of one system), 70 % training each."""
+    for i, seed in enumerate((11, 12, 13)):
+        u, y = narx(900, seed)
+        write_csv(tmp_path / f"run{i}.csv", {"u": u, "y": y})
+    raw = _raw(families=["narx"], budget=budget)
+    raw["data"] = {"path": [f"run{i}.csv" for i in range(3)], "input": ["u"], "output": ["y"]}
+    raw["data"]["split"] = {"train": 0.7, "validation": 0.3}
+    return raw, load_dataset(validate_spec(raw, "<test>", tmp_path))
+
+
 def test_several_recordings_are_each_left_out_in_turn(tmp_path):
     """Three training recordings (runs at other conditions, here other realizations): each is validated by a
     model trained on the other two, so the ranking says how a model carries over to a recording it has not
     seen (on the seal data a validation split taken from the same pressures chose a network 1000x worse on a
     new pressure, benchmarks/auto_vs_expert.py)."""
-    for i, seed in enumerate((11, 12, 13)):
-        u, y = narx(900, seed)
-        write_csv(tmp_path / f"run{i}.csv", {"u": u, "y": y})
-    raw = _raw(families=["narx"], budget=1)
-    raw["data"] = {"path": [f"run{i}.csv" for i in range(3)], "input": ["u"], "output": ["y"]}
-    raw["data"]["split"] = {"train": 0.7, "validation": 0.3}
-    ds = load_dataset(validate_spec(raw, "<test>", tmp_path))
+    raw, ds = _three_recordings(tmp_path, budget=1)
     assert possible_recording_folds(ds) == 3
     for i in range(3):
         v = view(ds, Layout("recording", fold=i, folds=3))
@@ -571,13 +576,7 @@ def test_long_recordings_left_out_in_turn_are_screened_on_part_of_the_others(tmp
     import dynmodel.search.run as search_run
 
     monkeypatch.setattr(search_run, "SCREEN_SAMPLES", 500)  # 1800 training samples per fold count as long
-    for i, seed in enumerate((11, 12, 13)):
-        u, y = narx(900, seed)
-        write_csv(tmp_path / f"run{i}.csv", {"u": u, "y": y})
-    raw = _raw(families=["narx"], budget=2)
-    raw["data"] = {"path": [f"run{i}.csv" for i in range(3)], "input": ["u"], "output": ["y"]}
-    raw["data"]["split"] = {"train": 0.7, "validation": 0.3}
-    ds = load_dataset(validate_spec(raw, "<test>", tmp_path))
+    raw, ds = _three_recordings(tmp_path, budget=2)
     v = view(ds, Layout("recording", samples=500, fold=1, folds=3))
     assert sum(b - a for _, a, b in v.ranges["train"]) == 500
     ((r, a, b),) = v.ranges["validation"]

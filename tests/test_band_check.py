@@ -29,8 +29,7 @@ def ds(tmp_path_factory) -> Dataset:
 
 
 def _leaves(ds: Dataset, y: np.ndarray) -> int | None:
-    lo, hi = checks.band(ds)
-    return checks._leaves(y[:, None], lo, hi, checks._output_range(ds)[2])
+    return checks._leaves(y[:, None], *checks.band(ds))
 
 
 def test_a_run_inside_the_band_passes_and_one_held_at_its_edge_fails(ds):

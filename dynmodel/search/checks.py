@@ -47,18 +47,14 @@ BRIEF = 20
 STRAY = 0.01
 
 
-def _output_range(ds: Dataset) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(low, high, width) of the training outputs, per output."""
+def band(ds: Dataset) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(low, high, width) per output: the training output range widened by BAND x its width (less the
+    edge) on each side, and that range's width."""
     y = ds.concat_outputs("train")
     lo, hi = np.nanmin(y, axis=0), np.nanmax(y, axis=0)
-    return lo, hi, np.maximum(hi - lo, np.finfo(float).tiny)
-
-
-def band(ds: Dataset) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) per output: the training output range widened by BAND x its width, less the edge."""
-    lo, hi, width = _output_range(ds)
+    width = np.maximum(hi - lo, np.finfo(float).tiny)
     margin = BAND * (1.0 - EDGE) * width
-    return lo - margin, hi + margin
+    return lo - margin, hi + margin, width
 
 
 def _longest_run(mask: np.ndarray) -> int:
@@ -108,8 +104,7 @@ def _start_outputs(ds: Dataset, split: str, rec: int, warmup: int, train_mean: n
 def band_checks(model: FittedModel, ds: Dataset) -> dict[str, Any]:
     """Per split: ``{"ok": bool, "start": how runs started, "sample": first sample outside the band or None,
     "recording": its name}`` plus ``"ok"`` over all splits. Runs every recording once."""
-    lo, hi = band(ds)
-    width = _output_range(ds)[2]
+    lo, hi, width = band(ds)
     train_mean = np.nanmean(ds.concat_outputs("train"), axis=0)
     warm = model.warmup
     owner: dict[int, str] = {}
