@@ -25,7 +25,7 @@ import json
 import math
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -163,8 +163,9 @@ def _progress_span(stage: str) -> tuple[float, float]:
 
 def context(
     spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | None
-) -> tuple[SearchContext, str, str | None]:
-    """The search context, the layout kind and why the validation is short. 'recordings': three or more
+) -> tuple[SearchContext, str, int, str | None]:
+    """The search context, the layout kind, its number of folds (0: the spec's own splits) and why the
+    validation is short. 'recordings': three or more
     recordings with fitting data, each left out in turn; 'folds': blocked cross-validation of short data;
     'tail': long data without a validation split, ranked on the last of :data:`FOLDS` blocks held out (the
     context's sample counts are that fold's); 'holdout': the spec's own validation split."""
@@ -177,12 +178,13 @@ def context(
     short = None
     if n_val < CV_BELOW:
         short = f"the validation split has only {n_val} scored samples" if n_val else "there is no validation split"
-    folds = possible_folds(ds, FOLDS)
+    folds, left_out = possible_folds(ds, FOLDS), possible_recording_folds(ds)
     small = short is not None and n_train + n_val <= CV_MAX and folds >= 2
-    mode = "recordings" if possible_recording_folds(ds) else ("folds" if small else "holdout")
+    mode = "recordings" if left_out else ("folds" if small else "holdout")
     if mode == "holdout" and n_val == 0 and folds >= 2:
         mode = "tail"  # ranked on the last block held out, never on the training error
         n_train, n_val = n_train - n_train // folds, n_train // folds
+    folds = {"recordings": left_out, "holdout": 0}.get(mode, folds)
     data = dict(spec.resolved()["data"])
     ctx = SearchContext(
         input_names=tuple(ds.input_names),
@@ -198,7 +200,7 @@ def context(
         cost=written_cost,
         budget=float(params.budget),
     )
-    return ctx, mode, short
+    return ctx, mode, folds, short
 
 
 class Search:
@@ -219,7 +221,7 @@ class Search:
         self.executor = executor
         self.progress = progress
         self.cancel = cancel or threading.Event()
-        self.ctx, self.mode, self.short = context(spec, ds, self.params, written_cost)
+        self.ctx, self.mode, self.folds, self.short = context(spec, ds, self.params, written_cost)
         self.budget = Budget(float(self.params.budget))
         self.entries: dict[str, Entry] = {}
         self.references: list[TaskResult] = []
@@ -229,28 +231,21 @@ class Search:
         self.interrupted: str | None = None
         self.limited = False  # stopped at the safety limit (not by the user)
         self.started = time.monotonic()
-        kind = "recording" if self.mode == "recordings" else "fold"
-        folds = possible_recording_folds(ds) if self.mode == "recordings" else possible_folds(ds, FOLDS)
-        self.folds = folds = folds if self.mode != "holdout" else 0
-        n_screen = min(SCREEN_SAMPLES, self.ctx.n_train)
-        cut = n_screen if n_screen < self.ctx.n_train else 0
-        if self.mode == "tail":  # the last block held out; screened on part of the rest as 'screen' is
+        folds = self.folds
+        if self.mode == "tail":  # the last block held out
             self.notes.append(tail_note(folds))
-            self.screen_layouts = [Layout("fold", samples=cut, fold=folds - 1, folds=folds)]
             self.final_layouts = [Layout("fold", fold=folds - 1, folds=folds)]
-        else:
+        elif folds:
+            kind = "recording" if self.mode == "recordings" else "fold"
             used = validated_folds(ds, folds) if self.mode == "folds" else list(range(folds))
-            self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used] if folds else [Layout("full")]
-            # long recordings left out in turn are screened on part of the others, as the holdout is
-            per_fold = self._n_layout(self.final_layouts[0]) if self.mode == "recordings" else 0
-            self.screen_layouts = (
-                [
-                    Layout(kind, samples=SCREEN_SAMPLES if per_fold > SCREEN_SAMPLES else 0, fold=i, folds=folds)
-                    for i in used
-                ]
-                if folds
-                else [Layout("screen", samples=cut) if cut else Layout("full")]
-            )
+            self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used]
+        else:
+            self.final_layouts = [Layout("full")]
+        # successive halving: screened on the last SCREEN_SAMPLES of a longer training (blocked folds are short
+        # data, screened as they are validated)
+        self.screen_layouts = (
+            self.final_layouts if self.mode == "folds" else [self._screened(x) for x in self.final_layouts]
+        )
         self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
         self.base = self._base_spec()
 
@@ -273,6 +268,14 @@ class Search:
         if not entry.random:
             return [int(self.spec.seed)]
         return [_seed_for(self.spec.seed, entry.cand.key, i) for i in range(count)]
+
+    def _screened(self, layout: Layout) -> Layout:
+        """``layout`` with its training cut to the last SCREEN_SAMPLES samples when it is longer."""
+        if self._n_layout(layout) <= SCREEN_SAMPLES:
+            return layout
+        if layout.kind == "full":
+            return Layout("screen", samples=SCREEN_SAMPLES)
+        return replace(layout, samples=SCREEN_SAMPLES)
 
     def _n_layout(self, layout: Layout) -> int:
         if layout.samples:
@@ -311,8 +314,8 @@ class Search:
             return True
         limit = HARD_LIMIT * self.budget.seconds + HARD_SLACK
         if time.monotonic() - self.started > limit:
-            self.limited = True
             if self.interrupted is None:
+                self.limited = True
                 self.interrupted = (
                     f"stopped at the safety limit of {HARD_LIMIT:g} x the budget + {HARD_SLACK:g} s in wall time "
                     f"({limit:.0f} s): the result depends on this machine's speed"
@@ -490,7 +493,7 @@ class Search:
             self._task(
                 f"reference|{layout.label}", self.raw_for(order[0], int(self.spec.seed), True), "reference", layout
             )
-            for layout in (self.final_layouts if self.folds else [Layout("full")])
+            for layout in self.final_layouts
         ]
         tasks = refs + [t for g in taken for t in g.tasks]
         self._run("screen", tasks)
@@ -760,7 +763,7 @@ class Search:
         ranked = self.ranking()
         entries = [self.entries[k] for k in ranked] + [e for k, e in self.entries.items() if k not in ranked]
         notes = list(self.notes) + (choice.notes if choice else [])
-        if self.limited and self.interrupted:
+        if self.limited:
             notes.insert(0, f"the search {self.interrupted}; a larger budget, or fewer samples, searches further")
         winner = self.entries.get(key) if key else None
         families = sorted({e.cand.family for e in self.entries.values() if e.summaries})
@@ -822,7 +825,7 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
     protocol limits and the starting candidates (nothing is fitted)."""
     params: AutoParams = spec.model.params
     written = spec.cost if "cost" in spec.model_fields_set else None
-    ctx, mode, short = context(spec, ds, params, written)
+    ctx, mode, k, short = context(spec, ds, params, written)
     families = searchable_families()
     chosen = params.families or list(families)
     lines = [
@@ -830,18 +833,17 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         f"{params.seeds} seed(s) per random configuration"
     ]
     if mode == "folds":
-        k = possible_folds(ds, FOLDS)
         first = "" if len(validated_folds(ds, k)) == k else "; the first block, where the free run starts, only trains"
         lines.append(
             f"ranking: blocked cross-validation in {k} blocks of the training and validation samples ({short}){first}"
         )
     elif mode == "recordings":
         lines.append(
-            f"ranking: free-run NMSE on each of the {possible_recording_folds(ds)} training recordings in turn, "
+            f"ranking: free-run NMSE on each of the {k} training recordings in turn, "
             "the model trained on the others (leave one recording out)"
         )
     elif mode == "tail":
-        lines.append(f"ranking: {tail_note(possible_folds(ds, FOLDS), planned=True)}")
+        lines.append(f"ranking: {tail_note(k, planned=True)}")
     else:
         n = min(SCREEN_SAMPLES, ctx.n_train)
         lines.append(

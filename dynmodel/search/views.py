@@ -89,11 +89,6 @@ def _cut(rec: Recording, start: int, stop: int, name: str | None = None) -> Reco
     return out
 
 
-def fit_part(ds: Dataset) -> Dataset:
-    """Training and validation only, every recording cut after its last such sample."""
-    return screen(ds, None)
-
-
 def screen(ds: Dataset, samples: int | None) -> Dataset:
     """The training split cut to its last ``samples`` samples (None: all of it), validation unchanged,
     test sets dropped; recordings start at their first kept sample."""
@@ -204,10 +199,10 @@ def recording_fold(ds: Dataset, i: int) -> Dataset:
 
 
 def view(ds: Dataset, layout: Layout) -> Dataset:
-    """The dataset a candidate is fitted on under ``layout``."""
-    if layout.kind == "screen":
-        return screen(ds, layout.samples)
-    if layout.kind in ("fold", "recording"):
-        out = fold(ds, layout.fold, layout.folds) if layout.kind == "fold" else recording_fold(ds, layout.fold)
-        return screen(out, layout.samples) if layout.samples else out
-    return fit_part(ds)
+    """The dataset a candidate is fitted on under ``layout``: the split of the layout's kind, then its
+    training cut to the last ``layout.samples`` samples (0: all)."""
+    if layout.kind == "fold":
+        ds = fold(ds, layout.fold, layout.folds)
+    elif layout.kind == "recording":
+        ds = recording_fold(ds, layout.fold)
+    return screen(ds, layout.samples or None)
