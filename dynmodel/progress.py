@@ -1,5 +1,6 @@
-"""Progress on stderr: a live line on a terminal; otherwise log lines on stage changes and every few
-seconds, starting once a run has lasted two seconds."""
+"""Progress on stderr: a live line on a terminal; otherwise log lines on stage changes, on a step without a
+fraction that follows one with a fraction (a search's next stage: the fits of a stage report fractions,
+the start of the next one none), and every few seconds, starting once a run has lasted two seconds."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ class Reporter:
         self.quiet_start = quiet_start
         self._stage: str | None = None
         self._last = 0.0
+        self._measured = False  # did the last call carry a fraction?
         self._status: Status | None = None
         self._start = time.monotonic()
         if self.tty:
@@ -46,7 +48,9 @@ class Reporter:
         now = time.monotonic()
         if now - self._start < self.quiet_start:
             return  # short runs and early errors stay free of log noise
-        if stage != self._stage or now - self._last >= self.interval:
+        new_step = fraction is None and self._measured
+        self._measured = fraction is not None
+        if stage != self._stage or new_step or now - self._last >= self.interval:
             elapsed = now - self._start
             print(f"[dynmodel {elapsed:7.1f}s] {text}", file=self.stream, flush=True)
             self._stage, self._last = stage, now

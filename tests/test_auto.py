@@ -593,6 +593,56 @@ def test_long_recordings_left_out_in_turn_are_screened_on_part_of_the_others(tmp
     assert model.metrics["validation"]["nmse"] < 0.5
 
 
+def test_a_stage_takes_its_share_less_the_work_reserved_for_after_it():
+    """Budget.take with a reserve: the moves stage leaves room for the model's refit (planned, not timed)."""
+    from dynmodel.search.plan import SHARES, Budget, Group
+
+    budget = Budget(10.0)  # an allowance of 20 s of work on the reference cores
+    groups = [Group(f"g{i}", [], 4.0) for i in range(6)]
+    assert len(budget.take("moves", groups, minimum=0)) == 5  # 20 s of 24
+    budget = Budget(10.0)
+    assert len(budget.take("moves", groups, minimum=0, reserve=7.0)) == 3  # 12 s of 13
+    assert budget.planned + budget.reserved <= SHARES["moves"] * budget.allowance
+    assert budget.to_json()["reserved"] == 7.0
+
+
+def test_a_refit_cut_by_the_safety_limit_keeps_the_fold_model_that_trained_on_the_most(tmp_path, monkeypatch):
+    """Left out in turn, the model is fitted again on all recordings after the search; when the safety limit
+    comes during that fit, the fit stops and the fold model of the median seed that trained on the most
+    samples is kept, with a note (on three recordings of 50000 samples, the refits of two candidates whose
+    refit failed its band check ran 20 minutes past a limit of 1020 s)."""
+    import dynmodel.search.run as search_run
+
+    real = search_run.run_specs
+    seen: list[str] = []
+
+    def limit_during_the_refit(tasks, *args, **kwargs):
+        tasks = list(tasks)
+        if any("|model|" in t.key for t in tasks):  # the refit on the spec's own layout starts ...
+            seen.extend(t.key for t in tasks)
+            monkeypatch.setattr(search_run, "HARD_LIMIT", 0.0)  # ... and the limit is reached
+            monkeypatch.setattr(search_run, "HARD_SLACK", 0.0)
+        return real(tasks, *args, **kwargs)
+
+    monkeypatch.setattr(search_run, "run_specs", limit_during_the_refit)
+    raw, ds = _three_recordings(tmp_path, budget=1)
+    short = ds.recordings[1].n - 300  # recording 2 shorter: leaving it out trains on the most samples
+    write_csv(tmp_path / "run1.csv", {"u": ds.recordings[1].u[:short], "y": ds.recordings[1].y[:short]})
+    model, _ = _fit(raw, tmp_path)
+    rec = model.search
+    assert seen and rec["safety_limit"] and rec["mode"] == "recordings"
+    # the moves left room in the plan for that fit
+    budget = rec["budget"]
+    assert budget["reserved"] > 0
+    assert budget["planned"] + budget["reserved"] <= budget["allowance"] or not budget["stages"].get("moves")
+    assert any(
+        "as fitted on recording 2/3 left out, not refitted on the whole training split" in n for n in rec["notes"]
+    ), rec["notes"]
+    winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
+    assert winner["verdict"] == "chosen" and winner["level"] == "final"
+    assert model.metrics["validation"]["nmse"] < 0.5
+
+
 def _operating_point(pressure: float, n: int, seed: int) -> dict[str, np.ndarray]:
     """A recording at one operating condition: y_t = 0.8 y_(t-1) + 0.5 u_t + 2 p_t with p held near
     ``pressure`` (the level 10 p comes from the pressure, as the seal's force does), small output noise."""

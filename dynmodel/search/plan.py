@@ -51,14 +51,18 @@ class Budget:
     seconds: float
     planned: float = 0.0
     stages: dict[str, float] = field(default_factory=dict)
+    #: work left for after the stages (the model's fit on the whole training split), the last reserve asked
+    reserved: float = 0.0
 
     @property
     def allowance(self) -> float:
         return self.seconds * REFERENCE_WORKERS
 
-    def take(self, stage: str, groups: Sequence[Group], minimum: int = 1) -> list[Group]:
-        """The groups of ``stage`` that fit its cumulative share, in the order given (at least ``minimum``)."""
-        limit = SHARES[stage] * self.allowance
+    def take(self, stage: str, groups: Sequence[Group], minimum: int = 1, reserve: float = 0.0) -> list[Group]:
+        """The groups of ``stage`` that fit its cumulative share less ``reserve`` (work planned after the stage),
+        in the order given (at least ``minimum``)."""
+        limit = SHARES[stage] * self.allowance - reserve
+        self.reserved = reserve
         taken: list[Group] = []
         for g in groups:
             if len(taken) >= minimum and self.planned + g.work > limit:
@@ -75,4 +79,5 @@ class Budget:
             "allowance": self.allowance,
             "planned": self.planned,
             "stages": dict(self.stages),
+            "reserved": self.reserved,
         }

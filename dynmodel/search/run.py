@@ -14,7 +14,8 @@ Stages, each with members fixed before it starts (see :mod:`.plan` for the budge
    residual says what is missing: extend, refit, keep what validates);
 
 then the choice (:mod:`.select`) on the final layout, and the winner's model: the fit already made on
-the full layout, or (cross-validation) a fit on the spec's own training and validation splits. Every fit
+the full layout, or (cross-validation) a fit on the spec's own training and validation splits, which the
+moves leave room for in the plan (past the safety limit, a fit already made is kept instead). Every fit
 runs through :func:`dynmodel.batch.run_specs` on the executor given (a local process pool by default).
 """
 
@@ -41,7 +42,7 @@ from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
-from .views import Layout, possible_folds, possible_recording_folds, validated_folds
+from .views import Layout, possible_folds, possible_recording_folds, validated_folds, view
 from .worker import Task, TaskResult, run_task
 
 if TYPE_CHECKING:
@@ -310,8 +311,10 @@ class Search:
 
     # ------------------------------------------------------------------ running a stage
     def _stopping(self) -> bool:
-        if self.cancel.is_set():
-            return True
+        return self.cancel.is_set() or self._past_limit()
+
+    def _past_limit(self) -> bool:
+        """Is the safety limit reached (then ``limited`` and ``interrupted`` say so)?"""
         limit = HARD_LIMIT * self.budget.seconds + HARD_SLACK
         if time.monotonic() - self.started > limit:
             if self.interrupted is None:
@@ -362,9 +365,18 @@ class Search:
                 }
             )
         out = [got[t.key] for t in tasks if t.key in got]
-        if self._stopping() and len(out) < n and self.interrupted is None:
-            self.interrupted = "interrupted"
+        if self._stopping() and len(out) < n:
+            if self.interrupted is None:
+                self.interrupted = "interrupted"
+            self._drop_abandoned()
         return out
+
+    def _drop_abandoned(self) -> None:
+        """Stop the fits a stopped stage left running (a local pool's workers are restarted): the model's fit
+        that follows would otherwise wait for them (two abandoned fits on 80k samples held both workers)."""
+        restart = getattr(self.executor, "restart", None)
+        if callable(restart):
+            restart()
 
     def _record(self, r: TaskResult) -> None:
         if r.kind == "reference":
@@ -554,7 +566,8 @@ class Search:
             diag = Group(
                 "diagnose", [self._task(f"diagnose|{round_}|{leader.cand.key}", raw, "diagnose", Layout("full"))], work
             )
-            if not self.budget.take("moves", [diag], minimum=0):
+            refit = self._refit_work(leader)
+            if not self.budget.take("moves", [diag], minimum=0, reserve=refit):
                 return
             results = self._run(f"moves {round_ + 1}: diagnose the leader", diag.tasks)
             if not results or results[0].status != "ok" or not results[0].proposals:
@@ -572,12 +585,20 @@ class Search:
                 if entry is not None:
                     new.append(entry)
             groups = [self._group(e, "final", self.seeds_of(e, self.params.seeds)) for e in new]
-            taken = self.budget.take("moves", groups, minimum=0)
+            taken = self.budget.take("moves", groups, minimum=0, reserve=refit)
             if not taken:
                 return
             self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks])
             if self.ranking("final")[:1] == ranked[:1]:
                 return  # no move beat the leader
+
+    def _refit_work(self, leader: Entry) -> float:
+        """Planned work of the model's fit after the search: none on a holdout (the fit validated is the model),
+        else the leader's fit on the whole training split (cross-validated folds, recordings left out), which
+        the moves leave room for."""
+        if self.mode in ("holdout", "tail"):
+            return 0.0
+        return estimated_work(leader.cand, self.ctx) + TASK_OVERHEAD
 
     def _candidate_from(self, leader: Entry, raw: dict[str, Any], prop: dict[str, Any]) -> Candidate | None:
         """The candidate a diagnosis proposal makes of the leader's spec (patch merged, then validated)."""
@@ -670,30 +691,34 @@ class Search:
         level = levels[choice.key] if choice.key else ("final" if "final" in levels.values() else "screen")
         return choice.key, choice, level
 
+    def _kept_fit(self, e: Entry, level: str) -> tuple[Any, Layout] | None:
+        """A fit of ``e`` already made at ``level`` that can be the model: its median seed's, on the layout that
+        trained on the most samples (a recording or block left out; ties: the first), one that passed its own
+        band check when there is one; None when no fitted model was kept."""
+        s = e.summaries[level]
+        fits = [r for r in e.results_at(level) if r.seed == s.median_seed and r.key in self.kept]
+        if not fits:
+            return None
+
+        def trained(r: TaskResult) -> int:
+            return view(self.ds, Layout(**r.layout)).n_scored("train")
+
+        r = min(fits, key=lambda r: (not r.checks.get("ok", False), -trained(r), r.key))
+        return self.kept[r.key], Layout(**r.layout)
+
     def _final_model(self, key: str, level: str):
         """The winner's FittedModel on the spec's own layout (re-evaluated by the caller). Validated on a
-        holdout, the fit validated is the model; at the safety limit that is so for a screening fit too (the
-        refit on the whole training split would take as long again: 276 s on 120k samples, after a limit
-        of 210 s)."""
+        holdout, the fit validated is the model. Otherwise it is fitted again on the whole training split,
+        unless the safety limit is reached before or during that fit: a fit already made is kept (the screening
+        fit, or the fold model that trained on the most samples), so that the search ends near its limit (the
+        refit on the whole training split took as long again: 276 s on 120k samples after a limit of 210 s;
+        on three recordings of 50k samples, 9 minutes after a limit of 1020 s)."""
         e = self.entries[key]
         s = e.summaries[level]
-        if self.mode in ("holdout", "tail") and (level == "final" or self.limited):
-            pick = next(
-                (
-                    r
-                    for r in sorted(e.results_at(level), key=lambda r: r.key)
-                    if r.seed == s.median_seed and r.key in self.kept
-                ),
-                None,
-            )
-            if pick is not None:
-                if level == "screen":
-                    self.notes.append(
-                        f"the model kept is {e.label} as screened ({self.screen_layouts[0].label}, its screening variant), "
-                        "not refitted on the whole training split, so that the search ends near its safety limit; "
-                        "a larger budget fits it in full"
-                    )
-                return self.kept[pick.key].to_model()
+        if (self.mode in ("holdout", "tail") and level == "final") or self._past_limit():
+            model = self._keep(e, level)
+            if model is not None or self.limited:
+                return model
         seed = s.median_seed if s.median_seed is not None else int(self.spec.seed)
         layout = self.final_layouts[0] if self.mode == "tail" else Layout("full")
         task = self._task(f"{e.cand.key}|model|{layout.label}|{seed}", self.raw_for(e.cand, seed, False), "fit", layout)
@@ -705,7 +730,10 @@ class Search:
                 "(Ctrl-C again stops without a model)",
             )
         cancel_set = self.cancel.is_set()
-        results = list(run_specs([task], self.executor, keep_models=True, point=run_task))
+        results = list(run_specs([task], self.executor, keep_models=True, point=run_task, cancel=self._past_limit))
+        if not results and self.limited:  # the limit was reached during the fit
+            self._drop_abandoned()
+            return self._keep(e, level)
         if not results or results[0].model is None:
             raise DynmodelError(
                 f"the chosen candidate ({e.label}) failed when fitted on the whole training split: "
@@ -719,6 +747,25 @@ class Search:
             return None
         assert r.model is not None  # checked above
         return r.model.to_model()
+
+    def _keep(self, e: Entry, level: str):
+        """The model of a fit already made (:meth:`_kept_fit`), with a note when it is not the fit the spec's
+        own layout would give; None when there is none (the next candidate is tried)."""
+        kept = self._kept_fit(e, level)
+        if kept is None:
+            return None
+        arrays, layout = kept
+        if self.limited and (level == "screen" or self.mode in ("recordings", "folds")):
+            how = (
+                f"as screened ({layout.label}, its screening variant)"
+                if level == "screen" and not self._screen_is_final(e.cand)
+                else f"as fitted on {layout.label}"
+            )
+            self.notes.append(
+                f"the model kept is {e.label} {how}, not refitted on the whole training split, so that the "
+                "search ends near its safety limit; a larger budget fits it in full"
+            )
+        return arrays.to_model()
 
     def run(self) -> SearchResult:
         choice: Choice | None = None
