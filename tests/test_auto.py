@@ -593,6 +593,37 @@ def test_long_recordings_left_out_in_turn_are_screened_on_part_of_the_others(tmp
     assert model.metrics["validation"]["nmse"] < 0.5
 
 
+def test_a_candidate_fits_as_written_with_its_nulls(tmp_path):
+    """A candidate's model section is fitted as written. ``patience: null`` (keep every term) was dropped by the
+    merge patch, so FOS chose the terms with the default patience: the NARX output-error candidate said
+    "every term" and kept four of six on a noisy linear plant, its "m terms" neighbours kept fewer than m."""
+    from scipy import signal
+
+    from dynmodel.search.run import Search
+
+    rng = np.random.default_rng(5)
+    n = 3000
+    u = signal.lfilter(*signal.butter(2, 0.1), rng.standard_normal(n)) * 3
+    y = signal.lfilter([0, 0.2, 0.1], [1, -1.3, 0.5], u)
+    write_csv(tmp_path / "train.csv", {"u": u, "y": y + rng.standard_normal(n) * y.std() / 3})
+    raw = _raw(families=["narx"])
+    raw["data"] = {"path": "train.csv", "input": ["u"], "output": ["y"], "split": {"train": 0.8, "validation": 0.2}}
+    spec = validate_spec(raw, "<test>", tmp_path)
+    search = Search(spec, load_dataset(spec))
+    lags = {"u": [{"from": 0, "to": 2}], "y": [{"from": 1, "to": 2}]}
+    terms = {}
+    for patience in (None, 20):
+        params = {"lags": lags, "degree": 1, "max_terms": 6, "patience": patience, "initial": "zeros"}
+        cand = Candidate(family="narx", params=params, summary="linear output error", cost="mse_inf", stochastic=False)
+        written = search.raw_for(cand, 0, screening=False)
+        assert written["model"]["params"]["patience"] == patience
+        fitted = validate_spec(written, "<test>", tmp_path)
+        model, _ = engine.fit_dataset(fitted, load_dataset(fitted))
+        terms[patience] = len(model.family.weights_)
+    assert terms[None] == 6  # 1, u[t], u[t-1], u[t-2], y[t-1], y[t-2]
+    assert terms[20] < 6  # the validation's choice here: what the dropped null gave
+
+
 def test_a_stage_takes_its_share_less_the_work_reserved_for_after_it():
     """Budget.take with a reserve: the moves stage leaves room for the model's refit (planned, not timed)."""
     from dynmodel.search.plan import SHARES, Budget, Group

@@ -21,6 +21,7 @@ runs through :func:`dynmodel.batch.run_specs` on the executor given (a local pro
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import math
@@ -261,7 +262,12 @@ class Search:
         return raw
 
     def raw_for(self, cand: Candidate, seed: int, screening: bool) -> dict[str, Any]:
-        raw = merge(self.base, cand.patch(screening))
+        """The complete spec of ``cand``: its patch merged into the user's spec, its model section as written
+        (the base has none to merge with, and a merge would drop its nulls: ``patience: null``, every term
+        kept, read as "no key" fitted the default patience's choice of terms instead)."""
+        patch = cand.patch(screening)
+        raw = merge(self.base, patch)
+        raw["model"] = copy.deepcopy(patch["model"])
         raw["seed"] = int(seed)
         return raw
 

@@ -10,8 +10,8 @@ on the free run (``cost: mse_inf``). So the starting candidates vary what the de
 * a longer memory at degree 2 (inputs 0..L, outputs 1..L with L up to 12 while the pool stays small:
   slow, smooth systems such as cascaded tanks);
 * a linear model with long lags (an ARX / output-error reference the nonlinear ones must beat);
-* a second-order linear output-error model run from rest and unclipped (``initial: zeros``, every term,
-  no output bounds, screened on the free run too): started from rest, its level must come from the
+* a second-order linear output-error model run from rest and unclipped (``initial: zeros``, its terms
+  chosen on validation, no output bounds, screened on the free run too): started from rest, its level must come from the
   inputs, not from measured initial outputs it could carry over, so it transfers to a recording at
   another operating condition (the pneumatic seal trained at 1, 3 and 7 bar: every other candidate,
   clipped and carrying its level, failed on each left-out pressure).
@@ -97,17 +97,18 @@ def _candidate(
 
 
 def _output_error(ctx: SearchContext, L: int = 2) -> Candidate:
-    """The linear output-error model of order ``L`` from rest: every linear term of inputs 0..L and outputs
-    1..L kept, weights on the free-running error (its screening fit too: least squares alone is the ARX
+    """The linear output-error model of order ``L`` from rest: the linear terms of inputs 0..L and outputs 1..L
+    (how many: FOS with the default patience, on the validation error; every term was measured too and lost,
+    see docs/auto.md), weights on the free-running error (its screening fit too: least squares alone is the ARX
     model, biased in free run), no output clip (a linear model extrapolates in proportion)."""
     pool = pool_size(_regressors(ctx, L), 1, True)
     full, _ = _work(ctx, pool, pool)
     unbounded = {y: [None, None] for y in ctx.output_names}  # bounds: null would read as "drop the key" in a patch
-    params = {"lags": _table(ctx, L), "degree": 1, "max_terms": pool, "patience": None, "initial": "zeros"}
+    params = {"lags": _table(ctx, L), "degree": 1, "max_terms": pool, "initial": "zeros"}
     return Candidate(
         family=NAME,
         params={**params, "bounds": unbounded},
-        summary=f"linear output error from rest: inputs 0..{L}, outputs 1..{L}, every term, no output clip",
+        summary=f"linear output error from rest: inputs 0..{L}, outputs 1..{L}, no output clip",
         cost="mse_inf",
         work=full,
         screen_work=full,
@@ -229,8 +230,8 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
     for m in sorted({max(2, k // 2), min(2 * k, pool)}):
         if m != k:
             add(
-                f"degree {degree}, lags up to {L}, {m} terms (was {k})",
-                {**fixed, "max_terms": m, "patience": None},
+                f"degree {degree}, lags up to {L}, at most {m} terms (was {k})",
+                {**fixed, "max_terms": m},
                 pool,
                 m,
                 complexity=float(m),
