@@ -11,8 +11,8 @@ on the free run (``cost: mse_inf``). So the starting candidates vary what the de
   slow, smooth systems such as cascaded tanks);
 * a linear model with long lags (an ARX / output-error reference the nonlinear ones must beat);
 * a second-order linear output-error model run from rest and unclipped (``initial: zeros``, its terms
-  chosen on validation, no output bounds, screened on the free run too): started from rest, its level must come from the
-  inputs, not from measured initial outputs it could carry over, so it transfers to a recording at
+  chosen on validation, no output bounds, screened on the free run too): started from rest, its level must
+  come from the inputs, not from measured initial outputs it could carry over, so it transfers to a recording at
   another operating condition (the pneumatic seal trained at 1, 3 and 7 bar: every other candidate,
   clipped and carrying its level, failed on each left-out pressure).
 
@@ -103,7 +103,7 @@ def _output_error(ctx: SearchContext, L: int = 2) -> Candidate:
     model, biased in free run), no output clip (a linear model extrapolates in proportion)."""
     pool = pool_size(_regressors(ctx, L), 1, True)
     full, _ = _work(ctx, pool, pool)
-    unbounded = {y: [None, None] for y in ctx.output_names}  # bounds: null would read as "drop the key" in a patch
+    unbounded = {y: [None, None] for y in ctx.output_names}  # as bounds: null (kept as written: the candidate's key)
     params = {"lags": _table(ctx, L), "degree": 1, "max_terms": pool, "initial": "zeros"}
     return Candidate(
         family=NAME,
