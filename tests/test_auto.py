@@ -637,13 +637,24 @@ def test_a_stage_takes_its_share_less_the_work_reserved_for_after_it():
     assert budget.to_json()["reserved"] == 7.0
 
 
-def test_a_refit_cut_by_the_safety_limit_keeps_the_fold_model_that_trained_on_the_most(tmp_path, monkeypatch):
+@pytest.mark.parametrize("ctrl_c", [False, True])
+def test_a_refit_cut_by_the_safety_limit_keeps_the_fold_model_that_trained_on_the_most(tmp_path, monkeypatch, ctrl_c):
     """Left out in turn, the model is fitted again on all recordings after the search; when the safety limit
     comes during that fit, the fit stops and the fold model of the median seed that trained on the most
     samples is kept, with a note (on three recordings of 50000 samples, the refits of two candidates whose
-    refit failed its band check ran 20 minutes past a limit of 1020 s)."""
+    refit failed its band check ran 20 minutes past a limit of 1020 s). After a Ctrl-C too: the refit of the
+    best so far stops at the limit, and the record still says Ctrl-C (exit 130), not the safety limit."""
     import dynmodel.search.run as search_run
 
+    if ctrl_c:  # pressed during the moves: the search goes on to fit the best so far
+        final_model = search_run.Search._final_model
+
+        def after_ctrl_c(self, key, level):
+            self.cancel.set()
+            self.interrupted = self.interrupted or "interrupted (Ctrl-C)"
+            return final_model(self, key, level)
+
+        monkeypatch.setattr(search_run.Search, "_final_model", after_ctrl_c)
     real = search_run.run_specs
     seen: list[str] = []
 
@@ -661,7 +672,8 @@ def test_a_refit_cut_by_the_safety_limit_keeps_the_fold_model_that_trained_on_th
     write_csv(tmp_path / "run1.csv", {"u": ds.recordings[1].u[:short], "y": ds.recordings[1].y[:short]})
     model, _ = _fit(raw, tmp_path)
     rec = model.search
-    assert seen and rec["safety_limit"] and rec["mode"] == "recordings"
+    assert seen and rec["mode"] == "recordings"
+    assert rec["safety_limit"] != ctrl_c and (rec["interrupted"] == "interrupted (Ctrl-C)") == ctrl_c
     # the moves left room in the plan for that fit
     budget = rec["budget"]
     assert budget["reserved"] > 0

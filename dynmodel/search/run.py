@@ -721,9 +721,10 @@ class Search:
         on three recordings of 50k samples, 9 minutes after a limit of 1020 s)."""
         e = self.entries[key]
         s = e.summaries[level]
-        if (self.mode in ("holdout", "tail") and level == "final") or self._past_limit():
-            model = self._keep(e, level)
-            if model is not None or self.limited:
+        past = self._past_limit()  # (after a Ctrl-C too, which ``limited`` does not report)
+        if (self.mode in ("holdout", "tail") and level == "final") or past:
+            model = self._keep(e, level, past)
+            if model is not None or past:
                 return model
         seed = s.median_seed if s.median_seed is not None else int(self.spec.seed)
         layout = self.final_layouts[0] if self.mode == "tail" else Layout("full")
@@ -737,9 +738,9 @@ class Search:
             )
         cancel_set = self.cancel.is_set()
         results = list(run_specs([task], self.executor, keep_models=True, point=run_task, cancel=self._past_limit))
-        if not results and self.limited:  # the limit was reached during the fit
+        if not results and self._past_limit():  # the limit was reached during the fit
             self._drop_abandoned()
-            return self._keep(e, level)
+            return self._keep(e, level, True)
         if not results or results[0].model is None:
             raise DynmodelError(
                 f"the chosen candidate ({e.label}) failed when fitted on the whole training split: "
@@ -754,14 +755,14 @@ class Search:
         assert r.model is not None  # checked above
         return r.model.to_model()
 
-    def _keep(self, e: Entry, level: str):
-        """The model of a fit already made (:meth:`_kept_fit`), with a note when it is not the fit the spec's
-        own layout would give; None when there is none (the next candidate is tried)."""
+    def _keep(self, e: Entry, level: str, past_limit: bool):
+        """The model of a fit already made (:meth:`_kept_fit`), with a note when the safety limit made it stand
+        in for the fit the spec's own layout would give; None when there is none (the next candidate is tried)."""
         kept = self._kept_fit(e, level)
         if kept is None:
             return None
         arrays, layout = kept
-        if self.limited and (level == "screen" or self.mode in ("recordings", "folds")):
+        if past_limit and (level == "screen" or self.mode in ("recordings", "folds")):
             how = (
                 f"as screened ({layout.label}, its screening variant)"
                 if level == "screen" and not self._screen_is_final(e.cand)
@@ -788,6 +789,7 @@ class Search:
                 self._stage_moves()
         except KeyboardInterrupt:
             self.interrupted = "interrupted (Ctrl-C)"
+            self._drop_abandoned()  # the stage's running fits would hold the workers the best one's fit needs
         model = None
         tried: set[str] = set()
         while True:
