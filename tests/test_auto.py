@@ -375,6 +375,14 @@ def test_ctrl_c_after_screening_compares_every_candidate_screened(tmp_path):
     assert chosen <= 1.1 * min(score for score, _, _ in deepest)
 
 
+def _reach_the_safety_limit(monkeypatch) -> None:
+    """From now on the search's wall time is past its safety limit."""
+    import dynmodel.search.run as search_run
+
+    monkeypatch.setattr(search_run, "HARD_LIMIT", 0.0)
+    monkeypatch.setattr(search_run, "HARD_SLACK", 0.0)
+
+
 def test_the_safety_limit_keeps_the_screening_fit_and_ends_without_an_error(tmp_path, cli, monkeypatch):
     """At the safety limit the search ends near it: the leader's screening fit is the model (its refit on the
     whole training split took as long again: 528 s for a limit of 210 s on 150k samples), a note says so,
@@ -385,8 +393,7 @@ def test_the_safety_limit_keeps_the_screening_fit_and_ends_without_an_error(tmp_
     grow = search_run.Search._stage_grow
 
     def limit_reached(self):  # the wall-time limit is reached as screening ends
-        monkeypatch.setattr(search_run, "HARD_LIMIT", 0.0)
-        monkeypatch.setattr(search_run, "HARD_SLACK", 0.0)
+        _reach_the_safety_limit(monkeypatch)
         return grow(self)
 
     monkeypatch.setattr(search_run.Search, "_stage_grow", limit_reached)
@@ -662,8 +669,7 @@ def test_a_refit_cut_by_the_safety_limit_keeps_the_fold_model_that_trained_on_th
         tasks = list(tasks)
         if any("|model|" in t.key for t in tasks):  # the refit on the spec's own layout starts ...
             seen.extend(t.key for t in tasks)
-            monkeypatch.setattr(search_run, "HARD_LIMIT", 0.0)  # ... and the limit is reached
-            monkeypatch.setattr(search_run, "HARD_SLACK", 0.0)
+            _reach_the_safety_limit(monkeypatch)  # ... and the limit is reached
         return real(tasks, *args, **kwargs)
 
     monkeypatch.setattr(search_run, "run_specs", limit_during_the_refit)

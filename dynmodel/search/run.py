@@ -697,21 +697,6 @@ class Search:
         level = levels[choice.key] if choice.key else ("final" if "final" in levels.values() else "screen")
         return choice.key, choice, level
 
-    def _kept_fit(self, e: Entry, level: str) -> tuple[Any, Layout] | None:
-        """A fit of ``e`` already made at ``level`` that can be the model: its median seed's, on the layout that
-        trained on the most samples (a recording or block left out; ties: the first), one that passed its own
-        band check when there is one; None when no fitted model was kept."""
-        s = e.summaries[level]
-        fits = [r for r in e.results_at(level) if r.seed == s.median_seed and r.key in self.kept]
-        if not fits:
-            return None
-
-        def trained(r: TaskResult) -> int:
-            return view(self.ds, Layout(**r.layout)).n_scored("train")
-
-        r = min(fits, key=lambda r: (not r.checks.get("ok", False), -trained(r), r.key))
-        return self.kept[r.key], Layout(**r.layout)
-
     def _final_model(self, key: str, level: str):
         """The winner's FittedModel on the spec's own layout (re-evaluated by the caller). Validated on a
         holdout, the fit validated is the model. Otherwise it is fitted again on the whole training split,
@@ -756,12 +741,20 @@ class Search:
         return r.model.to_model()
 
     def _keep(self, e: Entry, level: str, past_limit: bool):
-        """The model of a fit already made (:meth:`_kept_fit`), with a note when the safety limit made it stand
-        in for the fit the spec's own layout would give; None when there is none (the next candidate is tried)."""
-        kept = self._kept_fit(e, level)
-        if kept is None:
+        """The model of a fit of ``e`` already made at ``level``: its median seed's, on the layout that trained on
+        the most samples (a recording or block left out; ties: the first), one that passed its own band check
+        when there is one; with a note when the safety limit made it stand in for the fit on the spec's own
+        layout. None when no fitted model was kept (the next candidate is tried)."""
+        s = e.summaries[level]
+        fits = [r for r in e.results_at(level) if r.seed == s.median_seed and r.key in self.kept]
+        if not fits:
             return None
-        arrays, layout = kept
+
+        def trained(r: TaskResult) -> int:
+            return view(self.ds, Layout(**r.layout)).n_scored("train")
+
+        pick = min(fits, key=lambda r: (not r.checks.get("ok", False), -trained(r), r.key))
+        layout = Layout(**pick.layout)
         if past_limit and (level == "screen" or self.mode in ("recordings", "folds")):
             how = (
                 f"as screened ({layout.label}, its screening variant)"
@@ -772,7 +765,7 @@ class Search:
                 f"the model kept is {e.label} {how}, not refitted on the whole training split, so that the "
                 "search ends near its safety limit; a larger budget fits it in full"
             )
-        return arrays.to_model()
+        return self.kept[pick.key].to_model()
 
     def run(self) -> SearchResult:
         choice: Choice | None = None
