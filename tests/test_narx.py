@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -241,30 +242,38 @@ def _python_free_run(emb, E, out, w, U, Y, start, mix, clip):
         v = np.array([np.sum(w[out == k] * np.prod(x ** E[out == k], axis=1)) for k in range(2)])
         v = np.clip(v, clip[0], clip[1])
         yhat[t] = v
-        fb[t] = mix * Y[t] + (1 - mix) * v
+        fb[t] = np.where(np.isfinite(Y[t]), mix * Y[t] + (1 - mix) * v, v)  # unknown outputs: the prediction
     return yhat
 
 
-@pytest.mark.parametrize("start, mix", [(0, 0.0), (3, 0.0), (3, 0.3)])
-def test_free_run_kernel_equals_a_python_loop(start, mix):
+@pytest.mark.parametrize("start, mix, settle", [(0, 0.0, 0), (3, 0.0, 0), (3, 0.3, 0), (0, 0.0, 40)])
+def test_free_run_kernel_equals_a_python_loop(start, mix, settle):
+    """``settle``: the loop run on the first input held ``settle`` samples before the first, from rest."""
     emb, E, out, w = _two_output_model()
     rng = np.random.default_rng(1)
     U, Y = rng.standard_normal((300, 2)), rng.standard_normal((300, 2))
-    st = make_structure(emb, E, out, 2, start, (np.array([-np.inf, -0.5]), np.array([np.inf, 0.5])))
+    st = make_structure(emb, E, out, 2, start, (np.array([-np.inf, -0.5]), np.array([np.inf, 0.5])), settle)
     yhat, div = st.run(U, Y, w, mix)
-    ref = _python_free_run(emb, E, out, w, U, Y, start, mix, (st.clip_lo, st.clip_hi))
+    U_pre = np.vstack([np.repeat(U[:1], settle, axis=0), U])
+    Y_pre = np.vstack([np.full((settle, 2), np.nan), Y])
+    ref = _python_free_run(emb, E, out, w, U_pre, Y_pre, start, mix, (st.clip_lo, st.clip_hi))[settle:]
     assert div == -1
     np.testing.assert_allclose(yhat, ref, rtol=1e-12, atol=1e-13)
     assert np.all(np.abs(yhat[start:, 1]) <= 0.5)
 
 
-@pytest.mark.parametrize("start, mix, clipped", [(0, 0.0, False), (3, 0.0, False), (3, 0.4, False), (3, 0.0, True)])
-def test_sensitivity_jacobian_equals_finite_differences(start, mix, clipped):
+@pytest.mark.parametrize(
+    "start, mix, clipped, settle",
+    [(0, 0.0, False, 0), (3, 0.0, False, 0), (3, 0.4, False, 0), (3, 0.0, True, 0), (0, 0.0, False, 30)],
+)
+def test_sensitivity_jacobian_equals_finite_differences(start, mix, clipped, settle):
+    """With ``settle`` the weights act on the pre-roll too: the run's first samples depend on them."""
     emb, E, out, w = _two_output_model()
     rng = np.random.default_rng(2)
     U, Y = rng.standard_normal((400, 2)), rng.standard_normal((400, 2))
+    U[0] = 0.8  # a settled start away from rest at 0
     clip = (np.array([-np.inf, -0.4]), np.array([np.inf, 0.4])) if clipped else INF2
-    st = make_structure(emb, E, out, 2, start, clip)
+    st = make_structure(emb, E, out, 2, start, clip, settle)
     yhat, J, div = st.run_jacobian(U, Y, w, mix, clip)
     assert div == -1 and np.isfinite(J).all()
     np.testing.assert_array_equal(yhat, st.run(U, Y, w, mix)[0]) if mix == 0 else None
@@ -315,6 +324,58 @@ def test_candidate_sensitivities_equal_the_jacobian_and_partial_gram_selects_as_
     part = regression.fos_select(Gp, c, yy, forced=tuple(range(m)), max_terms=m + 3)
     full = regression.fos_select(G, c, yy, forced=tuple(range(m)), max_terms=m + 1)
     assert part.order[m] == full.order[m]
+
+
+def test_the_free_run_selection_reads_a_settled_run_s_sensitivities_through_its_pre_roll():
+    """``initial: settled``: the weights act on the pre-roll, so the sensitivities of the terms already in
+    the model are the settled run's Jacobian columns from the first scored sample on."""
+    spec, ds, td = loaded(narx_raw(n=1500, test_n=200, max_terms=4, patience=None, constant=True, initial="zeros"))
+    fam = Narx(**spec.model.params.model_dump()).fit(td, "mse1")
+    st = replace(fam._structure(), settle=60)
+    w, m = fam.weights_, len(fam.weights_)
+    scored = Scored.of(td, "train", 0)
+    s, rows, stop = td.series[0], scored.rows[0], scored.stop[0]
+    assert abs(s.u[0, 0]) > 0.1  # the pre-roll holds an input away from rest
+    unclipped = (np.full(1, -np.inf), np.full(1, np.inf))
+    yhat, J, _ = st.run_jacobian(s.u[:stop], s.y[:stop], w, 0.0, unclipped)
+    scale = 1.0 / np.sqrt(scored.n * scored.var)
+    A = (J[rows] * scale[None, :, None]).reshape(-1, m)
+    r = ((s.y[rows] - yhat[rows]) * scale).ravel()
+    Gp, c, _ = _sensitivity_gram(fam.embedding_, st, td, scored, w, Candidates(fam.exponents_, fam.term_output_), 0, m)
+    np.testing.assert_allclose(Gp, A.T @ A, rtol=1e-9, atol=1e-12 * np.abs(Gp).max())
+    np.testing.assert_allclose(c, A.T @ r, rtol=1e-9, atol=1e-12 * np.abs(c).max())
+    early = A[:20]  # the sensitivities the pre-roll carries into the first samples
+    _, J0, _ = replace(st, settle=0).run_jacobian(s.u[:stop], s.y[:stop], w, 0.0, unclipped)
+    assert not np.allclose(early, (J0[rows] * scale[None, :, None]).reshape(-1, m)[:20])
+
+
+def _at_rest(level: float, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """y_t = 0.9 y_(t-1) + 0.5 u_t at rest at its first input ``level`` (y = 5 level), then driven."""
+    rng = np.random.default_rng(seed)
+    u = level + rng.standard_normal(n)
+    u[0] = level
+    y = np.empty(n)
+    y[0] = 5.0 * level
+    for t in range(1, n):
+        y[t] = 0.9 * y[t - 1] + 0.5 * u[t]
+    return u, y
+
+
+def test_initial_settled_starts_a_run_at_rest_at_its_first_input_without_a_kick(tmp_path):
+    """Tested at a level (3) far from the training mean (0): started from rest at the training mean the run
+    steps to the first input and rings; settled at the first input it follows from the first sample. The
+    model file keeps the start."""
+    u, y = _at_rest(0.0, 2000, 1)
+    ut, yt = _at_rest(3.0, 500, 2)
+    errors = {}
+    for initial in ("zeros", "settled"):
+        model = Narx(lags={"u": [0], "y": [1]}, degree=1, bounds=None, initial=initial).fit(u, y, cost="mse_inf")
+        errors[initial] = 100 * np.mean((model.predict(ut)[:, 0] - yt) ** 2) / np.var(yt)
+        if initial == "settled":
+            assert model.warmup == 0
+            back = dynmodel.load(dynmodel.save(model, tmp_path / "settled.h5"))
+            np.testing.assert_array_equal(back.predict(ut), model.predict(ut))
+    assert errors["settled"] < 1e-6 and errors["zeros"] > 10, errors
 
 
 def test_training_window_keeps_the_last_samples_of_each_training_segment_and_all_validation():

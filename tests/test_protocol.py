@@ -126,7 +126,7 @@ def test_a_run_needing_more_measured_outputs_than_the_window_fails_in_one_line(f
         **_raw(test={"path": "a.csv"}, init_window=4),
         "model": {"family": "narx", "params": {"lags": {"u": [0, 6]}}},
     }
-    with pytest.raises(SpecError, match="first 6 measured outputs.*lags of at most 4 samples, or initial: zeros"):
+    with pytest.raises(SpecError, match="first 6 measured outputs.*lags of at most 4 samples, or initial: settled"):
         _fit(raw, files)
     raw["data"]["init_window"] = 6
     assert _fit(raw, files).metrics["test"]["init_window"] == 6

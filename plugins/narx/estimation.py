@@ -12,7 +12,7 @@ each step starting from the previous solution.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -42,6 +42,22 @@ class Structure:
     start: int  # first predicted sample of a run (the initial past is measured before it)
     clip_lo: np.ndarray
     clip_hi: np.ndarray
+    settle: int = 0  # samples of pre-roll with the first input held (initial: settled), not returned
+
+    def __post_init__(self) -> None:
+        if self.settle and self.start:
+            raise ValueError("a settled free run starts from rest, not from measured outputs (start 0)")
+
+    def settled(self, u: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``u`` and ``y`` preceded by the pre-roll: ``settle`` samples of the first input, outputs unknown."""
+        P = self.settle
+        u_pre = np.concatenate([np.repeat(u[:1], P, axis=0), u])
+        y_pre = np.concatenate([np.full((P, y.shape[1]), np.nan), y])
+        return np.ascontiguousarray(u_pre), np.ascontiguousarray(y_pre)
+
+    def without_settling(self) -> Structure:
+        """The same structure run on arrays that already hold the pre-roll (:meth:`settled`)."""
+        return replace(self, settle=0)
 
     def mixture(self, mix) -> np.ndarray:
         """The measured share of the fed-back signal, one value per output."""
@@ -58,6 +74,9 @@ class Structure:
     ):
         lo, hi = band if band is not None else (np.full(self.n_out, -np.inf), np.full(self.n_out, np.inf))
         clo, chi = clip if clip is not None else (self.clip_lo, self.clip_hi)
+        if self.settle and len(u):
+            yhat, div = self.without_settling().run(*self.settled(u, y), w, mix, band, clip)
+            return yhat[self.settle :], (-1 if div < 0 else max(div - self.settle, 0))
         return kernels.free_run(
             u,
             y,
@@ -79,6 +98,10 @@ class Structure:
         )
 
     def run_jacobian(self, u: np.ndarray, y: np.ndarray, w: np.ndarray, mix, clip):
+        if self.settle and len(u):
+            yhat, J, div = self.without_settling().run_jacobian(*self.settled(u, y), w, mix, clip)
+            P = self.settle
+            return yhat[P:], J[P:], (-1 if div < 0 else max(div - P, 0))
         inf = np.full(self.n_out, np.inf)
         return kernels.free_run_jacobian(
             u,
@@ -102,7 +125,13 @@ class Structure:
 
 
 def make_structure(
-    emb, exponents: np.ndarray, term_output: np.ndarray, n_out: int, start: int, clip: tuple[np.ndarray, np.ndarray]
+    emb,
+    exponents: np.ndarray,
+    term_output: np.ndarray,
+    n_out: int,
+    start: int,
+    clip: tuple[np.ndarray, np.ndarray],
+    settle: int = 0,
 ) -> Structure:
     from .embedding import factor_lists
 
@@ -120,6 +149,7 @@ def make_structure(
         start,
         np.asarray(clip[0], dtype=np.float64),
         np.asarray(clip[1], dtype=np.float64),
+        settle,
     )
 
 

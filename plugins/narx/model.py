@@ -35,7 +35,7 @@ from .estimation import (
     split_error,
 )
 from .onestep import fixed_weights, fos_structure, make_pool, ridge_candidates
-from .params import FreeRunRefinement, LagRange, NarxFamilyParams
+from .params import SETTLE_SAMPLES, FreeRunRefinement, LagRange, NarxFamilyParams
 from .selection import free_run_selection
 
 #: finalists of the lag and degree search are re-estimated on the free run (cost mse_inf) only when their
@@ -60,7 +60,10 @@ class Narx(Family):
         "use cost: mse_inf (free-running estimation), bounds: 0.1 (clip the output, eq. 6.25), ridge: auto, "
         "or a lower degree"
     )
-    warmup_hint = "use lags of at most {window} samples, or initial: zeros (the free run starts from rest)"
+    warmup_hint = (
+        "use lags of at most {window} samples, or initial: settled (the free run starts from rest at its first "
+        "input) or zeros (from the training mean)"
+    )
 
     params: NarxFamilyParams
 
@@ -84,7 +87,7 @@ class Narx(Family):
         bounds: float | dict[str, tuple[float | None, float | None]] | None = 0.5,
         clip_while_choosing: bool = False,
         start: Literal["drop", "zeros"] = "drop",
-        initial: Literal["measured", "zeros"] = "measured",
+        initial: Literal["measured", "zeros", "settled"] = "measured",
         max_pool: int = 3000,
         refinement: FreeRunRefinement | dict[str, Any] | None = None,
     ) -> None:
@@ -96,7 +99,7 @@ class Narx(Family):
     def warmup(self) -> int:
         """``initial: measured``: the first L samples (L = the largest lag) are measured (before
         ``fit``: the largest lag the parameters name)."""
-        if self.params.initial == "zeros":
+        if self.params.initial != "measured":
             return 0
         emb = getattr(self, "embedding_", None)
         return emb.max_lag if emb is not None else self._planned_max_lag()
@@ -124,7 +127,13 @@ class Narx(Family):
             self.n_outputs_,
             self.warmup,
             (self.clip_lo_, self.clip_hi_),
+            self._settle,
         )
+
+    @property
+    def _settle(self) -> int:
+        """Pre-roll samples of a free run (``initial: settled``), 0 otherwise."""
+        return SETTLE_SAMPLES if self.params.initial == "settled" else 0
 
     def _check_structure(self) -> Structure:
         """The model without its output clip, for the checks that choose it (see :meth:`_check_band`);
@@ -224,6 +233,7 @@ class Narx(Family):
                 self._check_band(),
                 p,
                 progress,
+                self._settle,
             )
             self.exponents_, self.term_output_, self.weights_ = exps, outs, weights
             self._warn_if_input_free()
@@ -452,7 +462,8 @@ class Narx(Family):
     def _output_structure(self, k: int, exps: np.ndarray, start: int) -> Structure:
         """Output ``k``'s polynomial with terms ``exps`` alone, clipped as the model runs."""
         outputs = np.full(len(exps), k, dtype=np.int64)
-        return make_structure(self.embedding_, exps, outputs, self.n_outputs_, start, (self.clip_lo_, self.clip_hi_))
+        clip = (self.clip_lo_, self.clip_hi_)
+        return make_structure(self.embedding_, exps, outputs, self.n_outputs_, start, clip, self._settle)
 
     def _free_run_error(self, data: TrainingData):
         """error(k, exponents, weights): free-run NMSE of output k's polynomial (the other outputs fed

@@ -16,6 +16,8 @@ from dynmodel.family import FamilyParams
 
 #: selection free_run: training samples family auto grows the model on (``growth_window``)
 GROWTH_WINDOW = 12000
+#: initial: settled: samples of pre-roll with the first input held, from rest, before a free run's first sample
+SETTLE_SAMPLES = 200
 
 
 class LagRange(FamilyParams):
@@ -176,10 +178,13 @@ class NarxFamilyParams(FamilyParams):
         description="training patterns at a recording's start (thesis 3.1.1): drop those whose regressors reach "
         "before the first sample, or fill the missing past with zeros",
     )
-    initial: Literal["measured", "zeros"] = Field(
+    initial: Literal["measured", "zeros", "settled"] = Field(
         "measured",
         description="free run: measured: the first L samples (L = the largest lag) are the measured outputs "
-        "and the prediction starts at sample L; zeros: every value before the first sample is 0 (model space)",
+        "and the prediction starts at sample L; zeros: every value before the first sample is 0 (model space: "
+        f"the training mean); settled: the run starts from rest at its first input (that input held for "
+        f"{SETTLE_SAMPLES} samples before the first, from zeros), with no kick where the input does not start "
+        "at its mean",
     )
     max_pool: int = Field(
         3000, ge=1, description="refuse pools with more monomials than this (memory and time grow with its square)"

@@ -82,21 +82,25 @@ def _sensitivity_gram(
     yy = 0.0
     P = max(1, int(lag[fed].max()) if fed.any() else 1)
     finite = np.isfinite(st.clip_lo) | np.isfinite(st.clip_hi)
+    run = st.without_settling()
     for s, rows in enumerate(scored.rows):
         if not rows.size:
             continue
         ser = data.series[s]
-        stop = scored.stop[s]
-        u = ser.u[:stop]
-        yhat, _ = st.run(u, ser.y[:stop], w)
+        u, y = ser.u[: scored.stop[s]], ser.y[: scored.stop[s]]
+        if settle := st.settle:  # the pre-roll's sensitivities carry into the run: run it here, unscored
+            u, y = st.settled(u, y)
+            rows = rows + settle
+        stop = len(u)
+        yhat, _ = run.run(u, y, w)
         live = np.ones(yhat.shape, dtype=np.bool_)
         if finite.any():
             live = ~((yhat == st.clip_lo) | (yhat == st.clip_hi))
         X = emb.matrix(u, yhat)
         D = kernels.model_gradient(X, st.ptr, st.reg, st.pw, st.out, w, n_out, fed)
         use = np.zeros(stop, dtype=np.bool_)
-        use[rows[rows >= first]] = True
-        resid = (ser.y[:stop] - yhat) * scale
+        use[rows[rows >= first + settle]] = True
+        resid = (y - yhat) * scale
         prev = np.zeros((P, n_out, C))
         for t0 in range(0, stop, _ROWS):
             t1 = min(stop, t0 + _ROWS)
@@ -110,7 +114,7 @@ def _sensitivity_gram(
                 diag += np.einsum("ij,ij->j", A, A)
                 r = resid[t0:t1][keep].ravel()
                 c += A.T @ r
-                yy += float(np.sum((ser.y[t0:t1][keep] * scale) ** 2))
+                yy += float(np.sum((y[t0:t1][keep] * scale) ** 2))
             tail = np.concatenate([prev, S])[-P:]
             prev = np.ascontiguousarray(tail)
     G = np.zeros((C, C))
@@ -144,6 +148,7 @@ def _linear_start(
     p: NarxFamilyParams,
     limit: int,
     val: Scored | None,
+    settle: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The model the growth starts from: the constant and the linear terms (an ARX model), chosen
     per output by FOS on the one-step error with as many terms as validate best in free run, with
@@ -169,7 +174,7 @@ def _linear_start(
         if val is not None:
 
             def score(order: list[int], coef: np.ndarray, k: int = k) -> float:
-                st = make_structure(emb, E[order], np.full(len(order), k, dtype=np.int64), n_out, start, clip)
+                st = make_structure(emb, E[order], np.full(len(order), k, dtype=np.int64), n_out, start, clip, settle)
                 return output_error(st, data, val, coef, band, k)
 
         path = regression.fos_select(
@@ -199,6 +204,7 @@ def free_run_selection(
     band: tuple[np.ndarray, np.ndarray],
     params: NarxFamilyParams,
     progress: Progress,
+    settle: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
     """Grow the model term by term on the linearised free-running error (module docstring), on at most
     ``growth_window`` training samples, then re-estimate the weights on the whole training split from the
@@ -219,8 +225,10 @@ def free_run_selection(
     limit = p.max_terms if p.max_terms is not None else pool.shape[0]
     finite_clip = (np.maximum(clip[0], band[0]), np.minimum(clip[1], band[1]))
     if p.free_run_start == "linear":
-        exps, outs, w = _linear_start(emb, pool, data, n_out, start, clip, band, p, limit, val if use_val else None)
-        st0 = make_structure(emb, exps, outs, n_out, start, clip)
+        exps, outs, w = _linear_start(
+            emb, pool, data, n_out, start, clip, band, p, limit, val if use_val else None, settle
+        )
+        st0 = make_structure(emb, exps, outs, n_out, start, clip, settle)
         unstable = diverges(st0, data, scored, w, band)
         mixes = [1.0 - i / r.ramp for i in range(1, r.ramp + 1)] if unstable else [0.0]
         w = refine(FreeRunProblem(st0, data, scored, finite_clip), w, mixes, r.solver, r.max_nfev, r.tol)
@@ -246,7 +254,7 @@ def free_run_selection(
     best = None
     best_err, since_best = np.inf, 0
     while True:
-        st = make_structure(emb, exps, outs, n_out, start, clip)
+        st = make_structure(emb, exps, outs, n_out, start, clip, settle)
         if use_val and val is not None and p.patience is not None:  # (use_val implies both)
             err = split_error(st, data, val, w, band)
             history[-1]["validation_nmse"] = None if not np.isfinite(err) else 100 * err
@@ -280,7 +288,7 @@ def free_run_selection(
         exps = np.vstack([exps, cand.exponents[j][None]])[order]
         outs = np.append(outs, cand.output[j])[order]
         w = np.append(w, 0.0)[order]
-        st = make_structure(emb, exps, outs, n_out, start, clip)
+        st = make_structure(emb, exps, outs, n_out, start, clip, settle)
         w = refine(FreeRunProblem(st, data, scored, finite_clip), w, [0.0], r.solver, r.max_nfev, r.tol)
         label = emb.label_of(cand.exponents[j])
         history.append(
@@ -300,7 +308,7 @@ def free_run_selection(
         "path": history,
     }
     if data is not whole:
-        st = make_structure(emb, exps, outs, n_out, start, clip)
+        st = make_structure(emb, exps, outs, n_out, start, clip, settle)
         w, info["window"] = _refit_on_whole(st, whole, w, start, finite_clip, band, p, progress)
     return exps, outs, w, info
 
