@@ -326,7 +326,7 @@ def test_candidate_sensitivities_equal_the_jacobian_and_partial_gram_selects_as_
     assert part.order[m] == full.order[m]
 
 
-def test_the_free_run_selection_reads_a_settled_run_s_sensitivities_through_its_pre_roll():
+def test_the_free_run_selection_reads_the_sensitivities_of_a_settled_run_through_its_pre_roll():
     """``initial: settled``: the weights act on the pre-roll, so the sensitivities of the terms already in
     the model are the settled run's Jacobian columns from the first scored sample on."""
     spec, ds, td = loaded(narx_raw(n=1500, test_n=200, max_terms=4, patience=None, constant=True, initial="zeros"))
@@ -363,8 +363,8 @@ def _at_rest(level: float, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
 
 def test_initial_settled_starts_a_run_at_rest_at_its_first_input_without_a_kick(tmp_path):
     """Tested at a level (3) far from the training mean (0): started from rest at the training mean the run
-    steps to the first input and rings; settled at the first input it follows from the first sample. The
-    model file keeps the start."""
+    steps to the first input and takes tens of samples to reach its level; settled at the first input it
+    follows from the first sample. The model file keeps the start."""
     u, y = _at_rest(0.0, 2000, 1)
     ut, yt = _at_rest(3.0, 500, 2)
     errors = {}

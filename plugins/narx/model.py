@@ -609,7 +609,7 @@ class Narx(Family):
             if L and not np.isfinite(s.y[:L]).all():
                 raise ValueError(
                     f"the free run of recording {i + 1} starts from its first {L} measured outputs, which lie "
-                    "in the test split; use initial: zeros or put the test range later"
+                    "in the test split; use initial: settled (or zeros) or put the test range later"
                 )
 
     # ------------------------------------------------------------------ prediction

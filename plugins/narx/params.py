@@ -17,6 +17,7 @@ from dynmodel.family import FamilyParams
 #: selection free_run: training samples family auto grows the model on (``growth_window``)
 GROWTH_WINDOW = 12000
 #: initial: settled: samples of pre-roll with the first input held, from rest, before a free run's first sample
+#: (a pole at 0.97 has decayed to 0.2 % by then; a slower model starts partly settled, and is fitted so)
 SETTLE_SAMPLES = 200
 
 
@@ -182,7 +183,7 @@ class NarxFamilyParams(FamilyParams):
         "measured",
         description="free run: measured: the first L samples (L = the largest lag) are the measured outputs "
         "and the prediction starts at sample L; zeros: every value before the first sample is 0 (model space: "
-        f"the training mean); settled: the run starts from rest at its first input (that input held for "
+        "the training mean); settled: the run starts from rest at its first input (that input held for "
         f"{SETTLE_SAMPLES} samples before the first, from zeros), with no kick where the input does not start "
         "at its mean",
     )

@@ -99,10 +99,11 @@ def _candidate(
 
 
 def _output_error(ctx: SearchContext, L: int = 2) -> Candidate:
-    """The linear output-error model of order ``L`` settled at its first input: the linear terms of inputs 0..L and outputs 1..L
-    (how many: FOS with the default patience, on the validation error; every term was measured too and lost,
-    see docs/auto.md), weights on the free-running error (its screening fit too: least squares alone is the ARX
-    model, biased in free run), no output clip (a linear model extrapolates in proportion)."""
+    """The linear output-error model of order ``L`` settled at its first input: the linear terms of inputs
+    0..L and outputs 1..L (how many: FOS with the default patience, on the validation error; every term was
+    measured too and lost, see docs/auto.md), weights on the free-running error (its screening fit too: least
+    squares alone is the ARX model, biased in free run), no output clip (a linear model extrapolates in
+    proportion)."""
     pool = pool_size(_regressors(ctx, L), 1, True)
     full, _ = _work(ctx, pool, pool)
     unbounded = {y: [None, None] for y in ctx.output_names}  # as bounds: null (kept as written: the candidate's key)
