@@ -59,6 +59,11 @@ class Structure:
         """The same structure run on arrays that already hold the pre-roll (:meth:`settled`)."""
         return replace(self, settle=0)
 
+    def _after_pre_roll(self, div: int) -> int:
+        """The diverged sample of a run with its pre-roll, counted from the run's first sample (0 when the
+        pre-roll itself diverged), or -1."""
+        return -1 if div < 0 else max(div - self.settle, 0)
+
     def mixture(self, mix) -> np.ndarray:
         """The measured share of the fed-back signal, one value per output."""
         return np.ascontiguousarray(np.broadcast_to(np.asarray(mix, dtype=np.float64), (self.n_out,)))
@@ -72,11 +77,11 @@ class Structure:
         band: tuple[np.ndarray, np.ndarray] | None = None,
         clip=None,
     ):
-        lo, hi = band if band is not None else (np.full(self.n_out, -np.inf), np.full(self.n_out, np.inf))
-        clo, chi = clip if clip is not None else (self.clip_lo, self.clip_hi)
         if self.settle and len(u):
             yhat, div = self.without_settling().run(*self.settled(u, y), w, mix, band, clip)
-            return yhat[self.settle :], (-1 if div < 0 else max(div - self.settle, 0))
+            return yhat[self.settle :], self._after_pre_roll(div)
+        lo, hi = band if band is not None else (np.full(self.n_out, -np.inf), np.full(self.n_out, np.inf))
+        clo, chi = clip if clip is not None else (self.clip_lo, self.clip_hi)
         return kernels.free_run(
             u,
             y,
@@ -100,8 +105,7 @@ class Structure:
     def run_jacobian(self, u: np.ndarray, y: np.ndarray, w: np.ndarray, mix, clip):
         if self.settle and len(u):
             yhat, J, div = self.without_settling().run_jacobian(*self.settled(u, y), w, mix, clip)
-            P = self.settle
-            return yhat[P:], J[P:], (-1 if div < 0 else max(div - P, 0))
+            return yhat[self.settle :], J[self.settle :], self._after_pre_roll(div)
         inf = np.full(self.n_out, np.inf)
         return kernels.free_run_jacobian(
             u,
