@@ -17,12 +17,15 @@ The **choice** (:func:`choose`), in order:
    :data:`TIE` (1 %) normally, and :data:`CAUTIOUS_TIE` (10 %) when the validation cannot be trusted
    to rank finely: a short validation (cross-validated, or fewer than ``short`` scored samples), test
    inputs that leave the training range by more than :data:`EXTRAPOLATION` of its width, or no candidate
-   that beats the linear reference by :data:`REFERENCE_MARGIN`. The report says when the simpler one was
-   preferred, and why.
+   that beats the linear reference by :data:`REFERENCE_MARGIN`. When the last is the only reason, a larger
+   candidate stays out of the tie if it validates worse than the best by more than :data:`RESOLVED`
+   standard errors of a paired, block-wise comparison (:func:`paired_difference`): the validation resolves
+   that difference. The report says when the simpler one was preferred, and why.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -40,6 +43,8 @@ REFERENCE_MARGIN = 0.9
 EXTRAPOLATION = 0.05
 #: input dependence below which a model ignores its input (as :data:`dynmodel.usefulness.INPUT_DEPENDENCE`)
 IGNORES_INPUT = 0.01
+#: a block-wise difference larger than this many standard errors is resolved by the validation
+RESOLVED = 2.0
 #: a validation NMSE (%) from which even the best model is called poor
 POOR = 50.0
 
@@ -59,6 +64,8 @@ class Summary:
     message: str | None = None
     fits: int = 0
     seconds: float = 0.0
+    blocks: np.ndarray | None = None  # the median seed's score over validation blocks (:func:`block_scores`)
+    blocks_on: str = ""  # the views (layouts) those blocks lie in: only blocks of the same views are compared
 
     @property
     def finite(self) -> bool:
@@ -96,6 +103,25 @@ def _layout_kind(results: list[Any]) -> str | None:
     return kinds.pop() if len(kinds) == 1 else None
 
 
+def _denominators(results: list[Any]) -> np.ndarray | None:
+    """Per output, what the squared errors of ``results`` (several folds) are divided by for one pooled NMSE
+    (see :func:`pooled`); None when a result has no moments."""
+    moments = [r.moments for r in results]
+    if any(m is None for m in moments):
+        return None
+    if _layout_kind(results) == "recording":
+        # recordings at other operating points (pressures, loads) differ in level: the variance of all of
+        # them together is mostly that spread, which any model of the right level gets for free (on the
+        # seal data, an output-error model pooled 0.18 % and scored 8.6 % on a new pressure). Each recording
+        # is normalised by its own variance, as a test recording is: sum of errors / sum of n_i var_i
+        within = np.sum([np.asarray(m["sumsq"]) - np.asarray(m["sum"]) ** 2 / m["n"] for m in moments], axis=0)
+        return np.maximum(within, np.finfo(float).tiny)
+    n = sum(m["n"] for m in moments)
+    mean = np.sum([m["sum"] for m in moments], axis=0) / n
+    var = np.sum([m["sumsq"] for m in moments], axis=0) / n - mean**2
+    return n * np.maximum(var, np.finfo(float).tiny)
+
+
 def pooled(results: list[Any]) -> float:
     """One validation NMSE (%) of several folds: their squared errors summed and divided by the variance of
     every fold's measured validation output taken together (mean over outputs), as if the folds were one
@@ -105,22 +131,41 @@ def pooled(results: list[Any]) -> float:
     spread no test recording is scored against). One result: its own score."""
     if len(results) == 1:
         return float(results[0].score)
-    moments = [r.moments for r in results]
-    if any(m is None for m in moments):
+    denominators = _denominators(results)
+    if denominators is None:
         return float(np.mean([r.score for r in results]))
-    n = sum(m["n"] for m in moments)
-    sse = np.sum([m["sse"] for m in moments], axis=0)
-    if _layout_kind(results) == "recording":
-        # recordings at other operating points (pressures, loads) differ in level: the variance of all of
-        # them together is mostly that spread, which any model of the right level gets for free (on the
-        # seal data, an output-error model pooled 0.18 % and scored 8.6 % on a new pressure). Each recording
-        # is normalised by its own variance, as a test recording is: sum of errors / sum of n_i var_i
-        within = np.sum([np.asarray(m["sumsq"]) - np.asarray(m["sum"]) ** 2 / m["n"] for m in moments], axis=0)
-        return float(np.mean(100.0 * sse / np.maximum(within, np.finfo(float).tiny)))
-    mean = np.sum([m["sum"] for m in moments], axis=0) / n
-    var = np.sum([m["sumsq"] for m in moments], axis=0) / n - mean**2
-    var = np.maximum(var, np.finfo(float).tiny)
-    return float(np.mean(100.0 * sse / (n * var)))
+    sse = np.sum([r.moments["sse"] for r in results], axis=0)
+    return float(np.mean(100.0 * sse / denominators))
+
+
+def block_scores(results: list[Any]) -> np.ndarray | None:
+    """The pooled validation NMSE (%) of ``results`` (the folds of one seed, in key order) split over the
+    consecutive blocks of every fold (:data:`.worker.BLOCKS` each): block ``b`` holds its squared errors over
+    the pooled denominator, scaled to the block's full size where a warmup left samples out, so that the
+    blocks sum to about the score and two candidates' blocks cover the same samples. None without blocks."""
+    denominators = _denominators(results)
+    if denominators is None or any("blocks" not in r.moments for r in results):
+        return None
+    parts = []
+    for r in results:
+        b = r.moments["blocks"]
+        n, full = np.asarray(b["n"], dtype=float), np.asarray(b["full"], dtype=float)
+        scale = np.divide(full, n, out=np.zeros_like(full), where=n > 0)
+        parts.append(np.mean(100.0 * np.asarray(b["sse"]) * scale[:, None] / denominators, axis=1))
+    return np.concatenate(parts)
+
+
+def paired_difference(a: Summary, b: Summary) -> tuple[float, float] | None:
+    """How much worse ``a`` validates than ``b`` summed over the same blocks, and the standard error of that
+    sum from the spread of the block-wise differences (a paired comparison: the noise both candidates see
+    cancels block by block, what differs between the models does not). None unless both were validated on
+    the same views, in as many blocks."""
+    if a.blocks is None or b.blocks is None or a.blocks_on != b.blocks_on or a.blocks.shape != b.blocks.shape:
+        return None
+    if a.blocks.size < 3:
+        return None
+    d = a.blocks - b.blocks
+    return float(d.sum()), float(np.sqrt(d.size) * d.std(ddof=1))
 
 
 def summarize(results: list[Any]) -> Summary | None:
@@ -144,6 +189,10 @@ def summarize(results: list[Any]) -> Summary | None:
         allowed = (len(rs) - 1) // 2 if _layout_kind(rs) == "fold" else 0
         ok_seeds[seed] = failed <= allowed and usable
     score, median = _median_seed(scores)
+    blocks, blocks_on = None, ""
+    if median is not None and math.isfinite(scores[median]):
+        blocks = block_scores(by_seed[median])
+        blocks_on = json.dumps([r.layout for r in by_seed[median]], sort_keys=True)
     ok = sum(ok_seeds.values()) * 2 >= len(ok_seeds) and (median is None or ok_seeds.get(median, False))
     chosen = by_seed.get(median, fits) if median is not None else fits
     deps = [r.dependence for r in fits if r.dependence is not None]
@@ -171,6 +220,8 @@ def summarize(results: list[Any]) -> Summary | None:
         message=message,
         fits=len(fits),
         seconds=float(sum(r.seconds for r in fits)),
+        blocks=blocks,
+        blocks_on=blocks_on,
     )
 
 
@@ -235,13 +286,27 @@ def choose(
         out.cautious.append(short_validation)
     if excursion > EXTRAPOLATION:
         out.cautious.append(f"the test inputs leave the training range by {100 * excursion:.0f} % of its width")
+    top = eligible[0]
+    paired = False
     if reference is not None and math.isfinite(reference) and not best <= REFERENCE_MARGIN * reference:
-        out.cautious.append(
+        reason = (
             f"no candidate beats the linear reference (validation NMSE {reference:.3g} %) by "
             f"{100 * (1 - REFERENCE_MARGIN):.0f} %"
         )
+        # the only doubt is the size of the gain: the validation itself can say whether it resolves it
+        paired = not out.cautious
+        out.cautious.append(reason)
     tie = CAUTIOUS_TIE if out.cautious else TIE
     close = [k for k in eligible if summaries[k].score <= best * (1 + tie) or summaries[k].score == best]
+    resolved: dict[str, tuple[float, float]] = {}
+    if paired:
+        for k in close:
+            if summaries[k].score <= best * (1 + TIE):
+                continue
+            diff = paired_difference(summaries[k], summaries[top])
+            if diff is not None and diff[0] > RESOLVED * diff[1]:
+                resolved[k] = diff
+        close = [k for k in close if k not in resolved]
     simplest = min(
         close,
         key=lambda k: (
@@ -250,10 +315,16 @@ def choose(
             k,
         ),
     )
+    if resolved and simplest == top:
+        out.notes.append(
+            f"{out.cautious[-1]}, but {labels[top]} validates better than the simpler candidates block by block "
+            f"(by more than {RESOLVED:g} standard errors of the difference), and is kept"
+        )
     out.key = simplest
-    top = eligible[0]
     if simplest != top:
         why = "; ".join(out.cautious) if out.cautious else "the difference is within 1 %"
+        if paired:
+            why += f", and the validation does not resolve the difference block by block (within {RESOLVED:g} standard errors)"
         out.notes.append(
             f"chose the simpler {labels[simplest]} (validation NMSE {summaries[simplest].score:.4g} %, size "
             f"{summaries[simplest].complexity:.0f}) over {labels[top]} ({summaries[top].score:.4g} %, size "
@@ -264,4 +335,6 @@ def choose(
             out.verdicts[k] = "chosen"
         elif k not in out.verdicts:
             out.verdicts[k] = "within the tie, larger" if k in close else "validates worse"
+            if k in resolved:
+                out.verdicts[k] = "validates worse (block by block)"
     return out

@@ -85,6 +85,10 @@ class TaskResult(PointResult):
         return out
 
 
+#: consecutive blocks of a validation split (of each fold) over which candidates are compared pairwise
+BLOCKS = 10
+
+
 def _score(metrics: dict[str, Any]) -> float | None:
     split = "validation" if "validation" in metrics else "train"
     value = (metrics.get(split) or {}).get("nmse")
@@ -104,11 +108,40 @@ def validation_moments(model, ds, runs) -> dict[str, Any] | None:
     yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])
     if not np.isfinite(yhat).all():
         return None
+    err2 = (y - yhat) ** 2
     return {
         "n": int(len(y)),
-        "sse": ((y - yhat) ** 2).sum(axis=0).tolist(),
+        "sse": err2.sum(axis=0).tolist(),
         "sum": y.sum(axis=0).tolist(),
         "sumsq": (y**2).sum(axis=0).tolist(),
+        "blocks": _block_sums(ds.scored(split, 0), rows, err2),
+    }
+
+
+def _block_sums(full: list[Any], rows: list[Any], err2: Any) -> dict[str, Any]:
+    """The squared errors ``err2`` (of the samples of ``rows``) summed in :data:`BLOCKS` consecutive blocks of
+    ``full``, the split's samples scored by a model without warmup. The blocks sit at the same samples for
+    every candidate, whatever its warmup (``rows`` only start later), so that two candidates can be compared
+    block by block (:func:`.select.paired_difference`): ``n`` samples scored per block, ``full`` samples per
+    block, ``sse`` per block and output."""
+    import numpy as np
+
+    offsets: dict[int, list[tuple[int, int, int]]] = {}
+    total = 0
+    for rec, a0, b0 in full:
+        offsets.setdefault(rec, []).append((a0, b0, total))
+        total += b0 - a0
+    positions = []
+    for rec, a, b in rows:
+        a0, _, off = next(x for x in offsets[rec] if x[0] <= a < x[1])
+        positions.append(np.arange(a, b) - a0 + off)
+    block = np.concatenate(positions) * BLOCKS // max(total, 1)
+    sse = np.zeros((BLOCKS, err2.shape[1]))
+    np.add.at(sse, block, err2)
+    return {
+        "n": np.bincount(block, minlength=BLOCKS).tolist(),
+        "full": np.bincount(np.arange(total) * BLOCKS // max(total, 1), minlength=BLOCKS).tolist(),
+        "sse": sse.tolist(),
     }
 
 
