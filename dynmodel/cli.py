@@ -211,7 +211,8 @@ def _print_search(record: dict[str, Any]) -> None:
     out.print(headline(record), markup=False, soft_wrap=True)
     table = Table(title_justify="left")
     for h in TABLE_HEADERS:
-        table.add_column(h, justify="right" if h in ("val. NMSE %", "fits", "fit s") else "left")
+        numeric = h in ("val. NMSE %", "fits", "fit s")
+        table.add_column(h, justify="right" if numeric else "left", no_wrap=numeric, overflow="fold")
     rows = leaderboard(record)
     for row in rows:
         table.add_row(*[escape(c) for c in table_cells(row)])

@@ -457,6 +457,17 @@ def test_cli_fit_prints_the_leaderboard_and_records_the_search(tmp_path, cli):
     assert "chosen by family auto" in shown.output
 
 
+def test_the_leaderboard_shows_why_a_candidate_was_rejected_in_full():
+    """The verdict is the reason a user reads the leaderboard for: never cut (it was cut at 60 characters,
+    before the split and sample where the free run left the band)."""
+    from dynmodel.search.report import table_cells
+
+    verdict = "rejected: leaves the output band on the test:bench_test.csv input at sample 1069 (run from rest)"
+    row = {"family": "narx", "summary": "degree 3", "validation_nmse": 3.5, "level": "full", "fits": 1}
+    cells = table_cells({**row, "seconds": 1.0, "verdict": verdict})
+    assert cells[-1] == verdict and cells[0] == "narx: degree 3"
+
+
 # ------------------------------------------------------------------------------------ the parts
 def test_folds_validate_every_training_and_validation_sample_once(tmp_path):
     _data(tmp_path)

@@ -75,13 +75,19 @@ def _short(text: str, width: int) -> str:
 
 
 def table_cells(row: dict[str, Any]) -> list[str]:
+    """One leaderboard row as text: the candidate's description cut at :data:`CANDIDATE_WIDTH` characters (the
+    record keeps it whole), the verdict whole (why a candidate was rejected or not chosen)."""
     return [
-        _short(f"{row['family']}: {row['summary']}", 60),
+        _short(f"{row['family']}: {row['summary']}", CANDIDATE_WIDTH),
         _fmt(row["validation_nmse"]) + ("" if row["level"] == "full" else "*"),
         str(row["fits"]),
         f"{row['seconds']:.1f}",
-        _short(row["verdict"], 60),
+        row["verdict"],
     ]
+
+
+#: characters of a candidate's description in the leaderboard
+CANDIDATE_WIDTH = 90
 
 
 TABLE_HEADERS = ["candidate", "val. NMSE %", "fits", "fit s", "verdict"]
