@@ -1,0 +1,177 @@
+"""family: auto on noisy measurements of generated systems, next to each family's default.
+
+    python benchmarks/auto_noisy.py                   # every case (about 4 min on 2 cores)
+    python benchmarks/auto_noisy.py --only linear-snr3 --json noisy.json
+
+Each case is one recording measured with output noise (trained on its first part, 80 % training and 20 %
+validation) and tested on the noise-free continuation of the same run, so the test NMSE is the model's
+own error, not the noise. Every candidate then validates near the noise floor, where the choice must
+tell a real gain from noise (docs/auto.md, "When the only doubt is the size of the gain"):
+
+* ``linear-snr3``: a second-order linear plant, white output noise with a third of the output's std
+  (a noise floor of 10 % validation NMSE);
+* ``linear-snr10``: the same kind of plant with a tenth;
+* ``hammerstein-snr3``: a mild cubic before second-order dynamics (a few % of the output), noise as above;
+* ``wiener-hammerstein-snr3``: linear, tanh plus a square, linear; noise as above;
+* ``duffing-coloured``: a hardening oscillator, low-pass (coloured) noise of a quarter of the output's std.
+
+Printed per case: the test NMSE (%) of ``family: auto`` (default budget) and of the narx and esn defaults
+(and of the example ``arx`` family when it is installed), the model auto chose and its wall time. Asserts
+nothing. The data are generated from fixed seeds, so the figures are the same on every machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import signal
+
+Series = dict[str, np.ndarray]
+
+
+def _linear(rng: np.random.Generator, snr: float) -> tuple[Series, Series]:
+    n = 6000
+    u = signal.lfilter(*signal.butter(2, 0.1), rng.standard_normal(n)) * 3
+    y0 = signal.lfilter([0, 0.2, 0.1], [1, -1.3, 0.5], u)
+    y = y0 + rng.standard_normal(n) * y0.std() / snr
+    return {"u": u[:5000], "y": y[:5000]}, {"u": u[5000:], "y": y0[5000:]}
+
+
+def _hammerstein(rng: np.random.Generator) -> tuple[Series, Series]:
+    n = 7000
+    u = signal.lfilter(*signal.butter(2, 0.08), rng.standard_normal(n)) * 2.5
+    y0 = signal.lfilter([0, 0.15, 0.1], [1, -1.4, 0.55], u + 0.08 * u**3)
+    y = y0 + rng.standard_normal(n) * y0.std() / 3
+    return {"u": u[:5500], "y": y[:5500]}, {"u": u[5500:], "y": y0[5500:]}
+
+
+def _wiener_hammerstein(rng: np.random.Generator) -> tuple[Series, Series]:
+    n = 8000
+    u = signal.lfilter(*signal.butter(3, 0.15), rng.standard_normal(n)) * 2
+    x = signal.lfilter([0, 0.3, 0.2], [1, -1.2, 0.45], u)
+    y0 = signal.lfilter([0.4, 0.3], [1, -0.3], np.tanh(x) + 0.2 * x**2)
+    y = y0 + rng.standard_normal(n) * y0.std() / 3
+    return {"u": u[:6500], "y": y[:6500]}, {"u": u[6500:], "y": y0[6500:]}
+
+
+def _duffing(rng: np.random.Generator) -> tuple[Series, Series]:
+    """q'' = u - 0.4 q' - q - 0.5 q^3 (semi-implicit Euler, dt 0.05), coloured measurement noise."""
+    n, dt = 8000, 0.05
+    u = signal.lfilter(*signal.butter(2, 0.05), rng.standard_normal(n)) * 4
+    q, v = np.zeros(n), np.zeros(n)
+    for t in range(1, n):
+        v[t] = v[t - 1] + dt * (u[t - 1] - 0.4 * v[t - 1] - q[t - 1] - 0.5 * q[t - 1] ** 3)
+        q[t] = q[t - 1] + dt * v[t]
+    e = signal.lfilter([1], [1, -0.8], rng.standard_normal(n))
+    e *= q.std() / 4 / e.std()
+    return {"u": u[:6500], "y": (q + e)[:6500]}, {"u": u[6500:], "y": q[6500:]}
+
+
+CASES: dict[str, Callable[[], tuple[Series, Series]]] = {
+    "linear-snr3": lambda: _linear(np.random.default_rng(5), 3),
+    "linear-snr10": lambda: _linear(np.random.default_rng(7), 10),
+    "hammerstein-snr3": lambda: _hammerstein(np.random.default_rng(21)),
+    "wiener-hammerstein-snr3": lambda: _wiener_hammerstein(np.random.default_rng(11)),
+    "duffing-coloured": lambda: _duffing(np.random.default_rng(13)),
+}
+DEFAULTS = ("narx", "esn", "arx")
+
+
+def _write(path: Path, series: Series) -> None:
+    np.savetxt(path, np.column_stack(list(series.values())), delimiter=",", header=",".join(series), comments="")
+
+
+def _fit(raw: dict[str, Any], base: Path, workers: int | None) -> tuple[Any, float]:
+    from dynmodel import engine
+    from dynmodel.data import load_dataset
+    from dynmodel.search import search_options
+    from dynmodel.spec import validate_spec
+
+    spec = validate_spec(raw, raw["name"], base)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ds = load_dataset(spec)
+        with search_options(workers=workers):
+            model, _ = engine.fit_dataset(spec, ds)
+    return model, time.perf_counter() - t0
+
+
+def run_case(name: str, folder: Path, args) -> dict[str, Any]:
+    from dynmodel.registry import families
+
+    train, test = CASES[name]()
+    _write(folder / f"{name}-train.csv", train)
+    _write(folder / f"{name}-test.csv", test)
+    base = {
+        "name": name,
+        "data": {
+            "path": f"{name}-train.csv",
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 0.8, "validation": 0.2},
+            "test": {"path": f"{name}-test.csv"},
+        },
+        "seed": 0,
+    }
+    auto: dict[str, Any] = {"family": "auto"}
+    if args.budget is not None:
+        auto["params"] = {"budget": args.budget}
+    model, seconds = _fit({**base, "model": auto}, folder, args.workers)
+    row: dict[str, Any] = {
+        "case": name,
+        "auto": model.metrics["test"]["nmse"],
+        "auto_validation": model.metrics["validation"]["nmse"],
+        "seconds": seconds,
+        "chosen": (model.search or {}).get("winner_summary") or model.family.name,
+        "notes": (model.search or {}).get("notes", []),
+        "defaults": {},
+    }
+    installed = set(families())
+    for family in DEFAULTS:
+        if family in installed and not args.no_defaults:
+            fitted, _ = _fit({**base, "model": {"family": family}}, folder, 1)
+            row["defaults"][family] = fitted.metrics["test"]["nmse"]
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--only", nargs="*", choices=list(CASES), help="cases (default: all)")
+    ap.add_argument("--budget", type=float, help="search budget in seconds (default: auto's own, 300)")
+    ap.add_argument("--workers", type=int, help="parallel fits of the search (default: one per core)")
+    ap.add_argument("--no-defaults", action="store_true", help="run auto only")
+    ap.add_argument("--json", type=Path, help="write every figure as JSON")
+    args = ap.parse_args()
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.only or list(CASES):
+            print(f"... {name}", flush=True)
+            results.append(run_case(name, Path(tmp), args))
+            if args.json:
+                args.json.write_text(json.dumps(results, indent=1, default=str))
+    names = [d for d in DEFAULTS if any(d in r["defaults"] for r in results)]
+    print("\ntest NMSE % on the noise-free continuation (validation at the noise floor)")
+    head = f"{'case':<24} {'auto':>8} " + " ".join(f"{d:>8}" for d in names) + f" {'s':>5}  chosen"
+    print(head)
+    print("-" * len(head))
+    for r in results:
+        print(
+            f"{r['case']:<24} {r['auto']:>8.3g} "
+            + " ".join(f"{r['defaults'][d]:>8.3g}" if d in r["defaults"] else f"{'-':>8}" for d in names)
+            + f" {r['seconds']:>5.0f}  {r['chosen'][:70]}"
+        )
+
+
+if __name__ == "__main__":
+    main()
