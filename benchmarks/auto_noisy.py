@@ -2,6 +2,7 @@
 
     python benchmarks/auto_noisy.py                   # every case (about 4 min on 2 cores)
     python benchmarks/auto_noisy.py --only linear-snr3 --json noisy.json
+    python benchmarks/auto_noisy.py --families narx esn annealed-rnn    # built-in families only
 
 Each case is one recording measured with output noise (trained on its first part, 80 % training and 20 %
 validation) and tested on the noise-free continuation of the same run, so the test NMSE is the model's
@@ -123,9 +124,12 @@ def run_case(name: str, folder: Path, args) -> dict[str, Any]:
         },
         "seed": 0,
     }
-    auto: dict[str, Any] = {"family": "auto"}
+    params: dict[str, Any] = {}
     if args.budget is not None:
-        auto["params"] = {"budget": args.budget}
+        params["budget"] = args.budget
+    if args.families:
+        params["families"] = args.families
+    auto: dict[str, Any] = {"family": "auto", "params": params}
     model, seconds = _fit({**base, "model": auto}, folder, args.workers)
     row: dict[str, Any] = {
         "case": name,
@@ -149,6 +153,7 @@ def main() -> None:
     ap.add_argument("--only", nargs="*", choices=list(CASES), help="cases (default: all)")
     ap.add_argument("--budget", type=float, help="search budget in seconds (default: auto's own, 300)")
     ap.add_argument("--workers", type=int, help="parallel fits of the search (default: one per core)")
+    ap.add_argument("--families", nargs="*", help="families auto searches (default: every installed one)")
     ap.add_argument("--no-defaults", action="store_true", help="run auto only")
     ap.add_argument("--json", type=Path, help="write every figure as JSON")
     args = ap.parse_args()
