@@ -27,13 +27,12 @@ import argparse
 import json
 import os
 import tempfile
-import time
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from auto_small_data import fit_timed
 from scipy import signal
 
 Series = dict[str, np.ndarray]
@@ -91,22 +90,6 @@ def _write(path: Path, series: Series) -> None:
     np.savetxt(path, np.column_stack(list(series.values())), delimiter=",", header=",".join(series), comments="")
 
 
-def _fit(raw: dict[str, Any], base: Path, workers: int | None) -> tuple[Any, float]:
-    from dynmodel import engine
-    from dynmodel.data import load_dataset
-    from dynmodel.search import search_options
-    from dynmodel.spec import validate_spec
-
-    spec = validate_spec(raw, raw["name"], base)
-    t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ds = load_dataset(spec)
-        with search_options(workers=workers):
-            model, _ = engine.fit_dataset(spec, ds)
-    return model, time.perf_counter() - t0
-
-
 def run_case(name: str, folder: Path, args) -> dict[str, Any]:
     from dynmodel.registry import families
 
@@ -116,11 +99,11 @@ def run_case(name: str, folder: Path, args) -> dict[str, Any]:
     base = {
         "name": name,
         "data": {
-            "path": f"{name}-train.csv",
+            "path": str(folder / f"{name}-train.csv"),
             "input": ["u"],
             "output": ["y"],
             "split": {"train": 0.8, "validation": 0.2},
-            "test": {"path": f"{name}-test.csv"},
+            "test": {"path": str(folder / f"{name}-test.csv")},
         },
         "seed": 0,
     }
@@ -130,7 +113,7 @@ def run_case(name: str, folder: Path, args) -> dict[str, Any]:
     if args.families:
         params["families"] = args.families
     auto: dict[str, Any] = {"family": "auto", "params": params}
-    model, seconds = _fit({**base, "model": auto}, folder, args.workers)
+    model, seconds = fit_timed({**base, "model": auto}, args.workers)
     row: dict[str, Any] = {
         "case": name,
         "auto": model.metrics["test"]["nmse"],
@@ -143,7 +126,7 @@ def run_case(name: str, folder: Path, args) -> dict[str, Any]:
     installed = set(families())
     for family in DEFAULTS:
         if family in installed and not args.no_defaults:
-            fitted, _ = _fit({**base, "model": {"family": family}}, folder, 1)
+            fitted, _ = fit_timed({**base, "model": {"family": family}}, 1)
             row["defaults"][family] = fitted.metrics["test"]["nmse"]
     return row
 

@@ -84,7 +84,9 @@ DEFAULTS: dict[str, dict[str, Any]] = {
 }
 
 
-def _fit(raw: dict[str, Any], workers: int | None) -> tuple[Any, float]:
+def fit_timed(raw: dict[str, Any], workers: int | None) -> tuple[Any, float]:
+    """The model of spec ``raw`` (paths absolute or relative to the repository) and its wall time, warnings
+    silenced, with ``workers`` parallel fits for a search."""
     from dynmodel import engine
     from dynmodel.data import load_dataset
     from dynmodel.search import search_options
@@ -112,7 +114,7 @@ def run_case(name: str, args) -> dict[str, Any]:
     if args.budget is not None:
         model_section["params"] = {"budget": args.budget}
     row: dict[str, Any] = {"case": name, "defaults": {}}
-    model, seconds = _fit({**base, "model": model_section}, args.workers)
+    model, seconds = fit_timed({**base, "model": model_section}, args.workers)
     search = model.search or {}
     row.update(
         auto=(model.metrics.get("test") or {}).get("nmse"),
@@ -128,7 +130,7 @@ def run_case(name: str, args) -> dict[str, Any]:
             if section["family"] not in installed:
                 continue
             try:
-                dm, _ = _fit({**base, "model": section}, 1)
+                dm, _ = fit_timed({**base, "model": section}, 1)
                 row["defaults"][dname] = (dm.metrics.get("test") or {}).get("nmse")
             except Exception as exc:  # noqa: BLE001 - a failing default is a figure too
                 row["defaults"][dname] = f"error: {exc}"
