@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from auto_small_data import fit_timed
+from auto_small_data import fit_timed, print_table
 from scipy import signal
 
 Series = dict[str, np.ndarray]
@@ -148,17 +148,7 @@ def main() -> None:
             results.append(run_case(name, Path(tmp), args))
             if args.json:
                 args.json.write_text(json.dumps(results, indent=1, default=str))
-    names = [d for d in DEFAULTS if any(d in r["defaults"] for r in results)]
-    print("\ntest NMSE % on the noise-free continuation (validation at the noise floor)")
-    head = f"{'case':<24} {'auto':>8} " + " ".join(f"{d:>8}" for d in names) + f" {'s':>5}  chosen"
-    print(head)
-    print("-" * len(head))
-    for r in results:
-        print(
-            f"{r['case']:<24} {r['auto']:>8.3g} "
-            + " ".join(f"{r['defaults'][d]:>8.3g}" if d in r["defaults"] else f"{'-':>8}" for d in names)
-            + f" {r['seconds']:>5.0f}  {r['chosen'][:70]}"
-        )
+    print_table(results, list(DEFAULTS), "test NMSE % on the noise-free continuation (validation at the noise floor)")
 
 
 if __name__ == "__main__":

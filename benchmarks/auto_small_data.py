@@ -166,16 +166,23 @@ def main() -> None:
         print(f"    auto {_fmt(r['auto'])} % in {r['seconds']:.0f} s: {r['chosen']}", flush=True)
         if args.json:
             args.json.write_text(json.dumps(results, indent=1, default=str))
-    names = [d for d in DEFAULTS if any(d in r["defaults"] for r in results)]
-    print("\ntest NMSE % (default split 60/20/20 of one recording); x best = auto / best default on the test")
-    head = f"{'case':<16} {'auto':>7} " + " ".join(f"{d:>8}" for d in names) + f" {'x best':>7} {'s':>5}  chosen"
+    print_table(results, list(DEFAULTS), "test NMSE % (default split 60/20/20 of one recording)")
+
+
+def print_table(results: list[dict[str, Any]], defaults: list[str], title: str) -> None:
+    """Auto's test NMSE next to each default's, the ratio to the best default on the test (an oracle a
+    user does not have), the wall time and the model chosen, one row per case."""
+    names = [d for d in defaults if any(d in r["defaults"] for r in results)]
+    width = max([16] + [len(r["case"]) for r in results])
+    print(f"\n{title}; x best = auto / best default on the test")
+    head = f"{'case':<{width}} {'auto':>7} " + " ".join(f"{d:>8}" for d in names) + f" {'x best':>7} {'s':>5}  chosen"
     print(head)
     print("-" * len(head))
     for r in results:
         nums = [v for v in r["defaults"].values() if isinstance(v, (int, float))]
         ratio = r["auto"] / min(nums) if nums and r["auto"] is not None and min(nums) > 0 else None
         print(
-            f"{r['case']:<16} {_fmt(r['auto']):>7} "
+            f"{r['case']:<{width}} {_fmt(r['auto']):>7} "
             + " ".join(f"{_fmt(r['defaults'].get(d)):>8}" for d in names)
             + f" {_fmt(ratio):>7} {r['seconds']:>5.0f}  {r['chosen'][:70]}"
         )
