@@ -797,6 +797,14 @@ def test_nothing_beating_the_linear_reference_keeps_a_gain_the_validation_resolv
         short_validation="only 40 validation samples",
     )
     assert short.key == "small"
+    # a block one candidate did not score (a long warmup) is left out of the comparison
+    from dynmodel.search.select import paired_difference
+
+    gap = _blocks(float(worse_everywhere.sum()), list(worse_everywhere))
+    assert gap.blocks is not None
+    gap.blocks[0] = np.nan
+    diff = paired_difference(gap, big)
+    assert diff is not None and diff[0] == pytest.approx(float((worse_everywhere - steady)[1:].sum()))
 
 
 def test_validation_blocks_sit_at_the_same_samples_whatever_the_warmup():
@@ -822,6 +830,11 @@ def test_validation_blocks_sit_at_the_same_samples_whatever_the_warmup():
     scores = block_scores([r, r2])
     assert scores is not None and scores.shape == (2 * BLOCKS,)
     assert scores.sum() == pytest.approx(pooled([r, r2]))
+    r2.moments = {**r.moments, "blocks": warm}  # a fold scored after a warmup: its empty blocks are not compared
+    scores = block_scores([r, r2])
+    assert scores is not None and int(np.isnan(scores).sum()) == 4
+    # the same error per sample: a block half scored (5 of 10 samples) is scaled to a full one
+    assert scores[BLOCKS + 2] == pytest.approx(scores[BLOCKS + 3])
 
 
 def test_on_noisy_data_the_search_keeps_the_model_the_validation_resolves_as_better(tmp_path):

@@ -142,7 +142,8 @@ def block_scores(results: list[Any]) -> np.ndarray | None:
     """The pooled validation NMSE (%) of ``results`` (the folds of one seed, in key order) split over the
     consecutive blocks of every fold (:data:`.worker.BLOCKS` each): block ``b`` holds its squared errors over
     the pooled denominator, scaled to the block's full size where a warmup left samples out, so that the
-    blocks sum to about the score and two candidates' blocks cover the same samples. None without blocks."""
+    blocks sum to about the score and two candidates' blocks cover the same samples; NaN for a block a
+    warmup left entirely unscored. None without blocks."""
     denominators = _denominators(results)
     if denominators is None or any("blocks" not in r.moments for r in results):
         return None
@@ -150,7 +151,7 @@ def block_scores(results: list[Any]) -> np.ndarray | None:
     for r in results:
         b = r.moments["blocks"]
         n, full = np.asarray(b["n"], dtype=float), np.asarray(b["full"], dtype=float)
-        scale = np.divide(full, n, out=np.zeros_like(full), where=n > 0)
+        scale = np.divide(full, n, out=np.full_like(full, np.nan), where=n > 0)  # NaN: a block not scored
         parts.append(np.mean(100.0 * np.asarray(b["sse"]) * scale[:, None] / denominators, axis=1))
     return np.concatenate(parts)
 
@@ -159,12 +160,13 @@ def paired_difference(a: Summary, b: Summary) -> tuple[float, float] | None:
     """How much worse ``a`` validates than ``b`` summed over the same blocks, and the standard error of that
     sum from the spread of the block-wise differences (a paired comparison: the noise both candidates see
     cancels block by block, what differs between the models does not). None unless both were validated on
-    the same views, in as many blocks."""
+    the same views, in as many blocks, and at least three blocks that both scored."""
     if a.blocks is None or b.blocks is None or a.blocks_on != b.blocks_on or a.blocks.shape != b.blocks.shape:
         return None
-    if a.blocks.size < 3:
-        return None
     d = a.blocks - b.blocks
+    d = d[np.isfinite(d)]  # the blocks both scored (a long warmup can leave the first unscored)
+    if d.size < 3:
+        return None
     return float(d.sum()), float(np.sqrt(d.size) * d.std(ddof=1))
 
 
