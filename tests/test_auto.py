@@ -788,6 +788,10 @@ def test_nothing_beating_the_linear_reference_keeps_a_gain_the_validation_resolv
     )
     assert kept.key == "big" and kept.verdicts["small"] == "validates worse (block by block)"
     assert "block by block" in kept.notes[0] and "linear reference" in kept.notes[0]
+    larger = _blocks(float(worse_everywhere.sum()), list(worse_everywhere))
+    larger.complexity = 80  # resolved as worse but larger: the simplest is kept anyway, and no note claims more
+    alone = choose({"big": big, "larger": larger}, {"big": "big", "larger": "larger"}, reference=1.05)
+    assert alone.key == "big" and not alone.notes
     tied = choose({"big": big, "small": _blocks(float(worse_once.sum()), list(worse_once))}, labels, reference=1.05)
     assert tied.key == "small" and "does not resolve the difference block by block" in tied.notes[0]
     short = choose(

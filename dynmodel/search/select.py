@@ -317,7 +317,9 @@ def choose(
             k,
         ),
     )
-    if resolved and simplest == top:
+    size = summaries[top].complexity
+    simpler_resolved = [k for k in resolved if size is None or (summaries[k].complexity or math.inf) < size]
+    if simpler_resolved and simplest == top:
         out.notes.append(
             f"{out.cautious[-1]}, but {labels[top]} validates better than the simpler candidates block by block "
             f"(by more than {RESOLVED:g} standard errors of the difference), and is kept"
