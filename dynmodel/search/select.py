@@ -25,7 +25,6 @@ The **choice** (:func:`choose`), in order:
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -65,7 +64,7 @@ class Summary:
     fits: int = 0
     seconds: float = 0.0
     blocks: np.ndarray | None = None  # the median seed's score over validation blocks (:func:`block_scores`)
-    blocks_on: str = ""  # the views (layouts) those blocks lie in: only blocks of the same views are compared
+    blocks_on: tuple = ()  # the views (layouts) those blocks lie in: only blocks of the same views are compared
 
     @property
     def finite(self) -> bool:
@@ -191,10 +190,11 @@ def summarize(results: list[Any]) -> Summary | None:
         allowed = (len(rs) - 1) // 2 if _layout_kind(rs) == "fold" else 0
         ok_seeds[seed] = failed <= allowed and usable
     score, median = _median_seed(scores)
-    blocks, blocks_on = None, ""
+    blocks: np.ndarray | None = None
+    blocks_on: tuple = ()
     if median is not None and math.isfinite(scores[median]):
         blocks = block_scores(by_seed[median])
-        blocks_on = json.dumps([r.layout for r in by_seed[median]], sort_keys=True)
+        blocks_on = tuple(tuple(sorted(r.layout.items())) for r in by_seed[median])
     ok = sum(ok_seeds.values()) * 2 >= len(ok_seeds) and (median is None or ok_seeds.get(median, False))
     chosen = by_seed.get(median, fits) if median is not None else fits
     deps = [r.dependence for r in fits if r.dependence is not None]
@@ -233,6 +233,11 @@ class Choice:
     notes: list[str] = field(default_factory=list)
     verdicts: dict[str, str] = field(default_factory=dict)  # key -> why not chosen (or "chosen")
     cautious: list[str] = field(default_factory=list)  # why the tie was widened
+
+
+def _size(s: Summary) -> float:
+    """A candidate's size for "the simpler one" (unknown: the largest)."""
+    return s.complexity if s.complexity is not None else math.inf
 
 
 def ignores_input(s: Summary) -> bool:
@@ -300,26 +305,15 @@ def choose(
         out.cautious.append(reason)
     tie = CAUTIOUS_TIE if out.cautious else TIE
     close = [k for k in eligible if summaries[k].score <= best * (1 + tie) or summaries[k].score == best]
-    resolved: dict[str, tuple[float, float]] = {}
+    resolved: set[str] = set()
     if paired:
         for k in close:
-            if summaries[k].score <= best * (1 + TIE):
-                continue
-            diff = paired_difference(summaries[k], summaries[top])
+            diff = None if summaries[k].score <= best * (1 + TIE) else paired_difference(summaries[k], summaries[top])
             if diff is not None and diff[0] > RESOLVED * diff[1]:
-                resolved[k] = diff
+                resolved.add(k)
         close = [k for k in close if k not in resolved]
-    simplest = min(
-        close,
-        key=lambda k: (
-            summaries[k].complexity if summaries[k].complexity is not None else math.inf,
-            summaries[k].score,
-            k,
-        ),
-    )
-    size = summaries[top].complexity
-    simpler_resolved = [k for k in resolved if size is None or (summaries[k].complexity or math.inf) < size]
-    if simpler_resolved and simplest == top:
+    simplest = min(close, key=lambda k: (_size(summaries[k]), summaries[k].score, k))
+    if simplest == top and any(_size(summaries[k]) < _size(summaries[top]) for k in resolved):
         out.notes.append(
             f"{out.cautious[-1]}, but {labels[top]} validates better than the simpler candidates block by block "
             f"(by more than {RESOLVED:g} standard errors of the difference), and is kept"
