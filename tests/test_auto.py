@@ -487,25 +487,68 @@ def test_folds_validate_every_training_and_validation_sample_once(tmp_path):
     np.testing.assert_array_equal(u, np.sort(ds.recordings[0].u[:, 0]))
 
 
-def test_the_first_block_only_trains_unless_the_validation_has_a_window(tmp_path):
+def test_the_first_block_only_trains_unless_the_validation_has_a_window_or_the_test_starts_afresh(tmp_path):
     """Without a validation window the free run starts in the first block: a network would be scored on its
-    start-up transient there, which no split following the training split shows; so it only trains."""
+    start-up transient there, which a test split following the training split never shows; so it only trains.
+    With a window, or when the test is a recording of its own (it shows that transient), every block is a run
+    of its own and is validated."""
     from dynmodel.search.views import validated_folds
 
     _data(tmp_path)
-    ds = load_dataset(validate_spec(_raw(), "<test>", tmp_path))
+    continued = _raw()
+    del continued["data"]["test"], continued["data"]["init_window"]
+    continued["data"]["split"] = {"train": 0.5, "validation": 0.3, "test": 0.2}  # the test continues the run
+    ds = load_dataset(validate_spec(continued, "<test>", tmp_path))
     assert validated_folds(ds, 5) == [1, 2, 3, 4]
     windowed = _raw()
     windowed["data"]["init_window"] = {"validation": WINDOW, "test": WINDOW}
     assert validated_folds(load_dataset(validate_spec(windowed, "<test>", tmp_path)), 5) == [0, 1, 2, 3, 4]
-    short = _raw(budget=1, families=["narx"])
-    short["data"]["split"] = {"train": 0.95, "validation": 0.05}  # 180 validation samples: cross-validated
-    rec, _ = _fit(short, tmp_path)
+    assert validated_folds(load_dataset(validate_spec(_raw(), "<test>", tmp_path)), 5) == [0, 1, 2, 3, 4]
+    short = dict(continued, model=_raw(budget=1, families=["narx"])["model"])
+    short["data"] = {**continued["data"], "split": {"train": 0.75, "validation": 0.05, "test": 0.2}}
+    rec, _ = _fit(short, tmp_path)  # 180 validation samples: cross-validated
     assert rec.search["mode"] == "folds"
     assert [lay["fold"] for lay in rec.search["layouts"]["final"]] == [1, 2, 3, 4]
     from dynmodel.search.report import headline
 
     assert "(cross-validated in 5 blocks, the first only training)" in headline(rec.search)
+
+
+def test_a_test_recording_of_its_own_is_mimicked_by_validation_runs_of_their_own(tmp_path):
+    """A separate test file starts a free run of its own: every view then validates on runs of their own,
+    with the test's window, and the search says so; a test that continues the training run changes nothing."""
+    from dynmodel.search.views import test_start
+
+    _data(tmp_path)
+    ds = load_dataset(validate_spec(_raw(), "<test>", tmp_path))
+    assert test_start(ds) == (True, WINDOW, False)
+    v = view(ds, Layout("full"))
+    ((r, a, b),) = v.ranges["validation"]
+    assert (a, b) == (0, 1080) and v.windows["validation"] == WINDOW
+    np.testing.assert_array_equal(v.recordings[r].u[:, 0], ds.recordings[0].u[2520:3600, 0])
+    ((rt, at, bt),) = v.ranges["train"]
+    assert v.recordings[rt].n == bt - at == 2520  # the training recording ends where the validation started
+    assert v.n_scored("validation") == 1080 - WINDOW
+    for i in range(5):  # every block a recording of its own, its window not scored
+        f = view(ds, Layout("fold", fold=i, folds=5))
+        ((r, a, b),) = f.ranges["validation"]
+        assert a == 0 and b == f.recordings[r].n == 720 and f.n_scored("validation") == 720 - WINDOW
+    continued = _raw()
+    del continued["data"]["test"], continued["data"]["init_window"]
+    continued["data"]["split"] = {"train": 0.5, "validation": 0.3, "test": 0.2}
+    ds2 = load_dataset(validate_spec(continued, "<test>", tmp_path))
+    assert test_start(ds2) == (False, 0, False)
+    ((r, a, b),) = view(ds2, Layout("full")).ranges["validation"]
+    assert a > 0  # continues the training run
+    whole = _raw()  # a test scored whole, from rest (the Bouc-Wen protocol): so is every validation run
+    whole["data"]["test"] = [{"name": "rest", "path": "test.csv", "score": "all"}]
+    del whole["data"]["init_window"]
+    ds3 = load_dataset(validate_spec(whole, "<test>", tmp_path))
+    assert test_start(ds3) == (True, 0, True)
+    v3 = view(ds3, Layout("full"))
+    assert "validation" in v3.score_all and v3.n_scored("validation", warmup=5) == 1080
+    rec, _ = _fit(_raw(budget=1, families=["narx"]), tmp_path)
+    assert any("validated on runs of its own" in n for n in rec.search["notes"])
 
 
 def test_the_screening_view_keeps_the_last_training_samples(tmp_path):
@@ -531,8 +574,11 @@ def test_long_data_without_a_validation_split_is_ranked_on_a_held_out_tail(tmp_p
     raw["data"]["split"] = {"train": 1.0}
     ds = load_dataset(validate_spec(raw, "<test>", tmp_path))
     screened = view(ds, Layout("fold", samples=1500, fold=4, folds=5))
-    assert screened.ranges["train"] == [(0, 0, 1500)] and screened.ranges["validation"] == [(0, 1500, 2220)]
+    # the test is a file of its own, so the tail held out is a run of its own too, with the test's window
+    assert screened.ranges["train"] == [(0, 0, 1500)] and screened.ranges["validation"] == [(1, 0, 720)]
     np.testing.assert_array_equal(screened.recordings[0].u[0], ds.recordings[0].u[1380])
+    np.testing.assert_array_equal(screened.recordings[1].u, ds.recordings[0].u[2880:3600])
+    assert screened.windows["validation"] == WINDOW
     model, _ = _fit(raw, tmp_path)
     rec = model.search
     assert rec["mode"] == "tail" and rec["folds"] == 5
@@ -546,9 +592,10 @@ def test_long_data_without_a_validation_split_is_ranked_on_a_held_out_tail(tmp_p
     assert 0 < held_out < 5.0 and model.metrics["test"]["nmse"] < 5.0
     # the model kept is the fit validated on the tail: its free run over that tail scores what the search saw
     tail = view(ds, Layout("fold", fold=4, folds=5))
-    ((r, a, b),) = tail.ranges["validation"]
+    ((r, a, b),) = tail.scored("validation", model.warmup)
     rec0 = tail.recordings[r]
-    y = model.run(rec0.u, rec0.y[: model.warmup] if model.warmup else None).y
+    start = max(model.warmup, WINDOW)
+    y = model.run(rec0.u, rec0.y[:start]).y
     err = np.mean((y[a:b, 0] - rec0.y[a:b, 0]) ** 2) / np.var(rec0.y[a:b, 0]) * 100
     assert err == pytest.approx(held_out, rel=1e-6)
 

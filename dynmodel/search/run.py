@@ -43,7 +43,7 @@ from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
-from .views import Layout, possible_folds, possible_recording_folds, validated_folds, view
+from .views import Layout, possible_folds, possible_recording_folds, test_start, validated_folds, view
 from .worker import Task, TaskResult, run_task
 
 if TYPE_CHECKING:
@@ -243,6 +243,11 @@ class Search:
             self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used]
         else:
             self.final_layouts = [Layout("full")]
+        if test_start(ds)[0]:
+            self.notes.append(
+                "the test data start recordings of their own, so every candidate was validated on runs of its own "
+                "too (started as a test recording is, not continuing the training run)"
+            )
         # successive halving: screened on the last SCREEN_SAMPLES of a longer training (blocked folds are short
         # data, screened as they are validated)
         self.screen_layouts = (
@@ -900,6 +905,11 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         )
     if ctx.max_warmup is not None:
         lines.append(f"the protocol lets a run start from at most {ctx.max_warmup} measured outputs")
+    if test_start(ds)[0]:
+        lines.append(
+            "the test data start recordings of their own: every validation range or block is run on its own too "
+            "(a model's start-up transient counts, as on the test)"
+        )
     if ctx.excursion > 0.05:
         lines.append(
             f"the test inputs leave the training range by {100 * ctx.excursion:.0f} % of its width: simpler, "

@@ -1,0 +1,75 @@
+"""family: auto on real recordings it was not tuned for (../shared/data; the tests skip without it).
+
+The pneumatic seal rig's other seals (not the NAPN seal the seal benchmark uses), force from position and
+pressure resampled to 50 Hz, as in benchmarks/auto_small_data.py; here the last fifth of each recording is
+given as a separate test recording, as a user with a second file does. A test file of its own starts a free
+run of its own, and the search validates its candidates that way too (docs/auto.md, "Validated as the test
+is run"): before, it validated them as a continuation of the training run and chose internal networks whose
+start-up transient the test then scored (KDN 3.0 %, kidney 9.8 % test NMSE where the NARX default scores
+0.94 and 0.34 %).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import pytest
+from conftest import ROOT, SHARED_DATA
+
+from dynmodel import engine
+from dynmodel.data import load_dataset
+from dynmodel.spec import validate_spec
+
+SEALS = SHARED_DATA / "pneumatic_seal_friction" / "friction"
+needs_seals = pytest.mark.skipif(not SEALS.is_dir(), reason=f"real friction data not found at {SEALS}")
+
+
+def _seal(name: str) -> dict[str, Any]:
+    return {
+        "path": str(SEALS / f"{name}.csv"),
+        "header": False,
+        "columns": ["t_ms", "laser_v", "pressure_v", "force_v", "position", "pressure", "force"],
+        "time_column": "t_ms",
+        "time_unit": 0.001,
+        "resample": 0.02,
+        "input": ["position", "pressure"],
+        "output": ["force"],
+    }
+
+
+def _fit(data: dict[str, Any], model: dict[str, Any]):
+    raw = {"name": "seal", "data": data, "model": model, "seed": 0, "evaluation": {"metrics": ["nmse"]}}
+    spec = validate_spec(raw, "<test>", ROOT)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fitted, _ = engine.fit_dataset(spec, load_dataset(spec))
+    return fitted
+
+
+def _separate_test(name: str) -> dict[str, Any]:
+    """The recording's first 80 % to fit (75 / 25 train / validation), its last 20 % a test recording."""
+    whole = {**_seal(name), "split": {"train": 1.0}}
+    n = load_dataset(validate_spec({"name": "n", "data": whole, "model": {"family": "narx"}}, "<t>", ROOT)).n_scored(
+        "train"
+    )
+    cut = int(0.8 * n)
+    return {
+        **_seal(name),
+        "segments": [[0, cut]],
+        "split": {"train": 0.75, "validation": 0.25},
+        "test": {"segments": [[cut, n]]},
+    }
+
+
+@pytest.mark.slow
+@needs_seals
+@pytest.mark.parametrize(("name", "ceiling"), [("KDN_3bar", 0.8), ("Kidney_2bar", 0.5)])
+def test_with_a_separate_test_recording_auto_beats_the_narx_default(name, ceiling):
+    """Measured: KDN 0.58 % (NARX default 0.94), kidney 0.30 % (0.34); before, 3.0 and 9.8 %."""
+    data = _separate_test(name)
+    auto = _fit(data, {"family": "auto"})
+    default = _fit(data, {"family": "narx"})
+    assert any("validated on runs of its own" in n for n in auto.search["notes"])
+    assert auto.metrics["test"]["nmse"] < ceiling
+    assert auto.metrics["test"]["nmse"] < default.metrics["test"]["nmse"]
