@@ -487,11 +487,10 @@ def test_folds_validate_every_training_and_validation_sample_once(tmp_path):
     np.testing.assert_array_equal(u, np.sort(ds.recordings[0].u[:, 0]))
 
 
-def test_the_first_block_only_trains_unless_the_validation_has_a_window_or_the_test_starts_afresh(tmp_path):
-    """Without a validation window the free run starts in the first block: a network would be scored on its
-    start-up transient there, which a test split following the training split never shows; so it only trains.
-    With a window, or when the test is a recording of its own (it shows that transient), every block is a run
-    of its own and is validated."""
+def test_the_first_block_only_trains_unless_the_validation_has_a_window(tmp_path):
+    """Without a validation window the free run starts in the first block, with the weight of a whole
+    recording's start (a test recording of its own weighs it by the validation / test length ratio, below);
+    so it only trains. With a window every block is a run of its own and is validated."""
     from dynmodel.search.views import validated_folds
 
     _data(tmp_path)
@@ -503,7 +502,7 @@ def test_the_first_block_only_trains_unless_the_validation_has_a_window_or_the_t
     windowed = _raw()
     windowed["data"]["init_window"] = {"validation": WINDOW, "test": WINDOW}
     assert validated_folds(load_dataset(validate_spec(windowed, "<test>", tmp_path)), 5) == [0, 1, 2, 3, 4]
-    assert validated_folds(load_dataset(validate_spec(_raw(), "<test>", tmp_path)), 5) == [0, 1, 2, 3, 4]
+    assert validated_folds(load_dataset(validate_spec(_raw(), "<test>", tmp_path)), 5) == [1, 2, 3, 4]
     short = dict(continued, model=_raw(budget=1, families=["narx"])["model"])
     short["data"] = {**continued["data"], "split": {"train": 0.75, "validation": 0.05, "test": 0.2}}
     rec, _ = _fit(short, tmp_path)  # 180 validation samples: cross-validated
@@ -514,41 +513,59 @@ def test_the_first_block_only_trains_unless_the_validation_has_a_window_or_the_t
     assert "(cross-validated in 5 blocks, the first only training)" in headline(rec.search)
 
 
-def test_a_test_recording_of_its_own_is_mimicked_by_validation_runs_of_their_own(tmp_path):
-    """A separate test file starts a free run of its own: every view then validates on runs of their own,
-    with the test's window, and the search says so; a test that continues the training run changes nothing."""
+def test_a_test_recording_of_its_own_has_its_start_counted_on_validation(tmp_path):
+    """A separate test file starts a free run of its own: the fresh view runs every validation range (or
+    block) on its own, with the test's window, and the search weighs that start by the validation / test length
+    ratio; a test that continues the training run, or starts at rest without a window, changes nothing."""
     from dynmodel.search.views import test_start
+    from dynmodel.search.worker import fresh_weight
 
     _data(tmp_path)
     ds = load_dataset(validate_spec(_raw(), "<test>", tmp_path))
     assert test_start(ds) == (True, WINDOW, False)
-    v = view(ds, Layout("full"))
+    assert view(ds, Layout("full")).ranges["validation"] == [(0, 2520, 3600)]  # the continuation, as before
+    v, k = fresh_weight(ds, Layout("full"))
+    assert k == pytest.approx(1.0)  # 1080 validation samples, a test file of 1000
     ((r, a, b),) = v.ranges["validation"]
     assert (a, b) == (0, 1080) and v.windows["validation"] == WINDOW
     np.testing.assert_array_equal(v.recordings[r].u[:, 0], ds.recordings[0].u[2520:3600, 0])
     ((rt, at, bt),) = v.ranges["train"]
     assert v.recordings[rt].n == bt - at == 2520  # the training recording ends where the validation started
     assert v.n_scored("validation") == 1080 - WINDOW
-    for i in range(5):  # every block a recording of its own, its window not scored
-        f = view(ds, Layout("fold", fold=i, folds=5))
+    for i in range(1, 5):  # every block a recording of its own, its window not scored, 720 / 1000 of a test's
+        f, k = fresh_weight(ds, Layout("fold", fold=i, folds=5))
         ((r, a, b),) = f.ranges["validation"]
         assert a == 0 and b == f.recordings[r].n == 720 and f.n_scored("validation") == 720 - WINDOW
+        assert k == pytest.approx(0.72)
     continued = _raw()
     del continued["data"]["test"], continued["data"]["init_window"]
     continued["data"]["split"] = {"train": 0.5, "validation": 0.3, "test": 0.2}
     ds2 = load_dataset(validate_spec(continued, "<test>", tmp_path))
-    assert test_start(ds2) == (False, 0, False)
-    ((r, a, b),) = view(ds2, Layout("full")).ranges["validation"]
-    assert a > 0  # continues the training run
-    whole = _raw()  # a test scored whole, from rest (the Bouc-Wen protocol): so is every validation run
+    assert test_start(ds2) == (False, 0, False) and fresh_weight(ds2, Layout("full")) is None
+    whole = _raw()  # a test scored whole, from rest (the Bouc-Wen protocol): so is every fresh validation run
     whole["data"]["test"] = [{"name": "rest", "path": "test.csv", "score": "all"}]
     del whole["data"]["init_window"]
     ds3 = load_dataset(validate_spec(whole, "<test>", tmp_path))
     assert test_start(ds3) == (True, 0, True)
-    v3 = view(ds3, Layout("full"))
+    v3, _ = fresh_weight(ds3, Layout("full"))
     assert "validation" in v3.score_all and v3.n_scored("validation", warmup=5) == 1080
+    held = tmp_path / "held"  # a test file whose input starts held (a rig at standstill) starts at rest
+    held.mkdir()
+    _data(held)
+    ut, yt = narx(1000, 12)
+    ut[:10] = ut[0]
+    write_csv(held / "test.csv", {"u": ut, "y": yt})
+    no_window = _raw()
+    del no_window["data"]["init_window"]
+    assert test_start(load_dataset(validate_spec(no_window, "<test>", held)))[0] is False
+    assert test_start(load_dataset(validate_spec(_raw(), "<test>", held)))[0] is True  # its window: measured
+    from dynmodel.search.run import describe_plan
+
+    plan = describe_plan(validate_spec(_raw(), "<test>", tmp_path), ds)
+    assert any("started afresh" in line and "weight 1" in line for line in plan)
+    assert not any("started afresh" in line for line in describe_plan(validate_spec(continued, "<t>", tmp_path), ds2))
     rec, _ = _fit(_raw(budget=1, families=["narx"]), tmp_path)
-    assert any("validated on runs of its own" in n for n in rec.search["notes"])
+    assert any("also counts its start as a test recording's" in n for n in rec.search["notes"])
 
 
 def test_the_screening_view_keeps_the_last_training_samples(tmp_path):
@@ -574,11 +591,8 @@ def test_long_data_without_a_validation_split_is_ranked_on_a_held_out_tail(tmp_p
     raw["data"]["split"] = {"train": 1.0}
     ds = load_dataset(validate_spec(raw, "<test>", tmp_path))
     screened = view(ds, Layout("fold", samples=1500, fold=4, folds=5))
-    # the test is a file of its own, so the tail held out is a run of its own too, with the test's window
-    assert screened.ranges["train"] == [(0, 0, 1500)] and screened.ranges["validation"] == [(1, 0, 720)]
+    assert screened.ranges["train"] == [(0, 0, 1500)] and screened.ranges["validation"] == [(0, 1500, 2220)]
     np.testing.assert_array_equal(screened.recordings[0].u[0], ds.recordings[0].u[1380])
-    np.testing.assert_array_equal(screened.recordings[1].u, ds.recordings[0].u[2880:3600])
-    assert screened.windows["validation"] == WINDOW
     model, _ = _fit(raw, tmp_path)
     rec = model.search
     assert rec["mode"] == "tail" and rec["folds"] == 5
@@ -590,14 +604,23 @@ def test_long_data_without_a_validation_split_is_ranked_on_a_held_out_tail(tmp_p
     winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
     held_out = winner["levels"]["final"]["score"]
     assert 0 < held_out < 5.0 and model.metrics["test"]["nmse"] < 5.0
-    # the model kept is the fit validated on the tail: its free run over that tail scores what the search saw
+    # the model kept is the fit validated on the tail: its free run over that tail, continuing the training run,
+    # with the tail run on its own as the separate test file is (after its 20-sample window) mixed in by the
+    # tail's length over the test's (720 / 1000), scores what the search saw
     tail = view(ds, Layout("fold", fold=4, folds=5))
-    ((r, a, b),) = tail.scored("validation", model.warmup)
+    ((r, a, b),) = tail.ranges["validation"]
     rec0 = tail.recordings[r]
-    start = max(model.warmup, WINDOW)
-    y = model.run(rec0.u, rec0.y[:start]).y
-    err = np.mean((y[a:b, 0] - rec0.y[a:b, 0]) ** 2) / np.var(rec0.y[a:b, 0]) * 100
+    warm = model.warmup
+    cont = (model.run(rec0.u, rec0.y[:warm] if warm else None).y[a:b, 0] - rec0.y[a:b, 0]) ** 2
+    own = rec0.y[a:b]
+    fresh = (model.run(rec0.u[a:b], own[:warm] if warm else None).y[:, 0] - own[:, 0]) ** 2
+    start = max(warm, WINDOW)
+    mixed = cont.copy()
+    mixed[start:] += 0.72 * (fresh[start:] - cont[start:])
+    err = np.mean(mixed) / np.var(rec0.y[a:b, 0]) * 100
     assert err == pytest.approx(held_out, rel=1e-6)
+    only_continued = np.mean(cont) / np.var(rec0.y[a:b, 0]) * 100
+    assert only_continued != pytest.approx(held_out, rel=1e-6)  # the fresh start counted (a NARX: a little)
 
 
 def _three_recordings(tmp_path: Path, budget: float) -> tuple[dict[str, Any], Any]:

@@ -86,7 +86,7 @@ def test_a_test_input_beyond_the_training_range_gets_several_full_fits(tmp_path)
 def test_a_budget_that_allows_it_fits_every_candidate_screened_near_the_best_in_full(tmp_path):
     """The screening variant ranks the full ones coarsely: with budget to spare, every candidate screened within
     SURVIVOR_FACTOR of the best is fitted in full, not only the best SURVIVORS; the rest are not."""
-    record = _search(tmp_path, 0.5, budget=100)
+    record = _search(tmp_path, 0.5, budget=60)
     screened = {
         c["key"]: c["levels"]["screen"]["score"]
         for c in record["candidates"]

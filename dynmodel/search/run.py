@@ -43,8 +43,8 @@ from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
-from .views import Layout, possible_folds, possible_recording_folds, test_start, validated_folds, view
-from .worker import Task, TaskResult, run_task
+from .views import Layout, possible_folds, possible_recording_folds, validated_folds, view
+from .worker import Task, TaskResult, fresh_weight, run_task
 
 if TYPE_CHECKING:
     from ..spec import Spec
@@ -243,10 +243,12 @@ class Search:
             self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used]
         else:
             self.final_layouts = [Layout("full")]
-        if test_start(ds)[0]:
+        fresh = fresh_weight(ds, self.final_layouts[0])
+        if fresh is not None:
             self.notes.append(
-                "the test data start recordings of their own, so every candidate was validated on runs of its own "
-                "too (started as a test recording is, not continuing the training run)"
+                "the test data start recordings of their own, so every candidate's validation error also counts its "
+                f"start as a test recording's: each validation run started afresh, weighted {fresh[1]:.2g} (the "
+                "validation runs' length over the test recordings') against its continuation of the training run"
             )
         # successive halving: screened on the last SCREEN_SAMPLES of a longer training (blocked folds are short
         # data, screened as they are validated)
@@ -905,10 +907,11 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         )
     if ctx.max_warmup is not None:
         lines.append(f"the protocol lets a run start from at most {ctx.max_warmup} measured outputs")
-    if test_start(ds)[0]:
+    fresh = fresh_weight(ds, Layout("fold", fold=k - 1, folds=k) if mode in ("folds", "tail") else Layout("full"))
+    if fresh is not None:
         lines.append(
-            "the test data start recordings of their own: every validation range or block is run on its own too "
-            "(a model's start-up transient counts, as on the test)"
+            "the test data start recordings of their own: each validation run is also started afresh, as a test "
+            f"recording is, and that start counts with weight {fresh[1]:.2g} (validation over test length)"
         )
     if ctx.excursion > 0.05:
         lines.append(

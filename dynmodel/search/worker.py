@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..batch import ModelArrays, PointResult, Variant, _one_line, cached_dataset
-from .views import Layout, view
+from .views import Layout, test_start, view
 
 if TYPE_CHECKING:
     from ..data.dataset import Dataset
@@ -95,9 +95,11 @@ def _score(metrics: dict[str, Any]) -> float | None:
     return None if value is None else float(value)
 
 
-def validation_moments(model, ds, runs) -> dict[str, Any] | None:
+def validation_moments(model, ds, runs, fresh: tuple[Any, float] | None = None) -> dict[str, Any] | None:
     """Sums over the scored validation samples (the training split when there is none): the count, and per
-    output the squared free-run error, the measured output's sum and sum of squares; None after a divergence."""
+    output the squared free-run error, the measured output's sum and sum of squares; None after a divergence.
+    ``fresh``: (the view with each validation range a run of its own, weight k): the squared errors count
+    that fresh start with weight k (:func:`_with_fresh_start`)."""
     import numpy as np
 
     split = "validation" if ds.ranges.get("validation") else "train"
@@ -109,6 +111,10 @@ def validation_moments(model, ds, runs) -> dict[str, Any] | None:
     if not np.isfinite(yhat).all():
         return None
     err2 = (y - yhat) ** 2
+    if fresh is not None and split == "validation":
+        err2 = _with_fresh_start(model, ds, rows, err2, *fresh)
+        if err2 is None:
+            return None
     return {
         "n": int(len(y)),
         "sse": err2.sum(axis=0).tolist(),
@@ -116,6 +122,56 @@ def validation_moments(model, ds, runs) -> dict[str, Any] | None:
         "sumsq": (y**2).sum(axis=0).tolist(),
         "blocks": _block_sums(ds.scored(split, 0), rows, err2),
     }
+
+
+def fresh_weight(ds: Dataset, layout: Layout) -> tuple[Dataset, float] | None:
+    """(the view of ``layout`` with each validation range a run of its own, k) when the test sets start runs
+    of their own and the layout's validation does not (:func:`.views.test_start`); None otherwise. A test
+    recording of T samples carries its start-up transient once, so per sample it weighs 1 / T; in a
+    validation run of V samples it weighs 1 / V: k = min(1, V / T), with the mean lengths of both."""
+    if layout.kind == "recording" or not test_start(ds)[0]:
+        return None
+    vf = view(ds, layout, fresh=True)
+    val = [b - a for _, a, b in vf.ranges.get("validation", [])]
+    tests = [b - a for s in ds.test_splits() for _, a, b in ds.ranges[s]]
+    if not val or not tests:
+        return None
+    return vf, min(1.0, (sum(val) / len(val)) / (sum(tests) / len(tests)))
+
+
+def _with_fresh_start(model, ds, rows, err2, fresh: Dataset, k: float):
+    """The squared errors ``err2`` of the continued run over ``rows`` (the scored validation samples of
+    ``ds``), with each sample's error started afresh (the same validation range run on its own in ``fresh``)
+    mixed in with weight ``k``: err2 + k (fresh err2 - err2), where the fresh run scores that sample (not in
+    its window or warmup). None when a fresh run diverges or leaves the finite numbers."""
+    import numpy as np
+
+    ranges, own = ds.ranges["validation"], fresh.ranges["validation"]
+    if len(ranges) != len(own) or any(b - a != fb - fa for (_, a, b), (_, fa, fb) in zip(ranges, own)):
+        return err2
+    warm = model.warmup
+    first = {r: a for r, a, _ in fresh.scored("validation", warm)}
+    out = err2.copy()
+    runs: dict[int, Any] = {}
+    pos = 0
+    for r, a1, b1 in rows:
+        i = next(i for i, (rr, a, b) in enumerate(ranges) if rr == r and a <= a1 < b)
+        rf, fa = own[i][0], own[i][1]
+        if rf in first:
+            if i not in runs:
+                rec = fresh.recordings[rf]
+                runs[i] = model.run(rec.u, rec.y[:warm] if warm else None)
+            if runs[i].diverged_at is not None:
+                return None
+            local = np.arange(a1, b1) - ranges[i][1] + fa
+            keep = local >= first[rf]
+            e = (ds.recordings[r].y[a1:b1][keep] - runs[i].y[local[keep]]) ** 2
+            if not np.isfinite(e).all():
+                return None
+            idx = pos + np.flatnonzero(keep)
+            out[idx] += k * (e - err2[idx])
+        pos += b1 - a1
+    return out
 
 
 def _block_sums(full: list[Any], rows: list[Any], err2: Any) -> dict[str, Any]:
@@ -146,6 +202,8 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any) -> dict[str, Any]:
 
 
 def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
+    import numpy as np
+
     from .. import engine, protocol
     from ..usefulness import input_dependence
     from .checks import band_checks, complexity
@@ -159,7 +217,17 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
     result.status = "diverged" if bad else "ok"
     if bad:
         result.message = f"the free run diverged on the {bad['split']} split at sample {bad['sample']}"
-    result.moments = None if bad else validation_moments(model, v, runs)
+    fresh = None if bad else fresh_weight(ds, task.layout)
+    result.moments = None if bad else validation_moments(model, v, runs, fresh)
+    if fresh is not None:
+        if result.moments is None:
+            result.status, result.score = "diverged", None
+            result.message = "the free run diverged on a validation run started as a test recording is"
+        else:  # the score with the fresh start mixed in: per output 100 sse / (n var), averaged
+            m = result.moments
+            n = m["n"]
+            var = np.maximum(np.asarray(m["sumsq"]) / n - (np.asarray(m["sum"]) / n) ** 2, np.finfo(float).tiny)
+            result.score = float(np.mean(100.0 * np.asarray(m["sse"]) / n / var))
     result.checks = band_checks(model, ds)
     try:
         result.dependence = None if bad else input_dependence(model, v, runs=runs)
