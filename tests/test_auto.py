@@ -568,6 +568,83 @@ def test_a_test_recording_of_its_own_has_its_start_counted_on_validation(tmp_pat
     assert any("also counts its start as a test recording's" in n for n in rec.search["notes"])
 
 
+class StartupParams(FamilyParams):
+    kick: float = Field(0.0, description="amplitude of a start-up transient exp(-t / 20) at every run's start")
+    shrink: float = Field(0.0, description="the slope shrunk by this fraction")
+
+
+class Startup(Family):
+    """A static affine map fitted by least squares, its slope shrunk by ``shrink``, plus a start-up transient
+    ``kick`` exp(-t / 20) at the start of every free run (what an internal network's zero state does)."""
+
+    name = "startup"
+    description = "test family for the start of a test recording"
+    Params = StartupParams
+    stochastic = False
+
+    def __init__(self, *, kick: float = 0.0, shrink: float = 0.0) -> None:
+        super().__init__(kick=kick, shrink=shrink)
+
+    def fit(self, data, cost="mse1", rng=None, progress=no_progress):
+        u = data.stack("train", [s.u for s in data.series])
+        coef, *_ = np.linalg.lstsq(np.column_stack([u, np.ones(len(u))]), data.targets("train"), rcond=None)
+        self.W_, self.w0_ = (1.0 - self.params.shrink) * coef[:-1], coef[-1]
+        return self
+
+    def simulate(self, u, y_measured=None, bounds=None):
+        start = self.params.kick * np.exp(-np.arange(len(u)) / 20.0)[:, None]
+        return Simulation(np.asarray(u) @ self.W_ + self.w0_ + start)
+
+    def to_arrays(self):
+        return {"W": self.W_, "w0": self.w0_}, {}
+
+    @classmethod
+    def from_arrays(cls, params, arrays, attrs):
+        m = cls(**params)
+        m.W_, m.w0_ = np.asarray(arrays["W"]), np.asarray(arrays["w0"])
+        return m
+
+    @classmethod
+    def search_space(cls, ctx, around=None):
+        if around is not None:
+            return []
+        return [
+            Candidate("startup", {"kick": 3.0}, "exact, a start-up transient", work=0.01),
+            Candidate("startup", {"shrink": 0.05}, "slope shrunk by 5 %, no transient", work=0.01),
+        ]
+
+
+def test_a_model_whose_start_the_test_files_show_is_not_chosen_on_its_continuation(tmp_path, monkeypatch):
+    """The exact model with a start-up transient validates better as a continuation of the training run; a
+    separate test file starts a run of its own, where the transient costs it more than the shrunk slope costs
+    the other: it is chosen only when the test continues the training run."""
+    installed = registry.families()
+    monkeypatch.setattr(registry, "families", lambda: {**installed, "startup": Startup})
+    spec_model.cache_clear()
+    rng = np.random.default_rng(5)
+    u, ut = rng.uniform(-1, 1, 2000), rng.uniform(-1, 1, 600)
+    y, yt = 2 * u + 0.01 * rng.standard_normal(2000), 2 * ut + 0.01 * rng.standard_normal(600)
+    write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    write_csv(tmp_path / "test.csv", {"u": ut, "y": yt})
+    write_csv(tmp_path / "whole.csv", {"u": np.concatenate([u, ut]), "y": np.concatenate([y, yt])})
+    separate = _raw(families=["startup"], budget=1)
+    del separate["data"]["init_window"]
+    continued = _raw(families=["startup"], budget=1)
+    del continued["data"]["init_window"], continued["data"]["test"]
+    continued["data"].update(path="whole.csv", split={"train": 1400 / 2600, "validation": 600 / 2600, "test": 0.23})
+    try:
+        m_sep, _ = _fit(separate, tmp_path)
+        m_cont, _ = _fit(continued, tmp_path)
+    finally:
+        spec_model.cache_clear()
+    assert m_cont.family.params.kick == 3.0  # the continuation never shows the transient
+    assert m_cont.metrics["test"]["nmse"] < 0.01
+    assert m_sep.family.params.kick == 0.0 and m_sep.family.params.shrink == 0.05
+    assert m_sep.metrics["test"]["nmse"] < 0.5
+    exact = next(c for c in m_sep.search["candidates"] if c["params"].get("kick") == 3.0)
+    assert exact["levels"]["final"]["score"] > 10  # its fresh start counted in full (k = 1: 600 / 600 samples)
+
+
 def test_the_screening_view_keeps_the_last_training_samples(tmp_path):
     _data(tmp_path)
     ds = load_dataset(validate_spec(_raw(), "<test>", tmp_path))

@@ -11,6 +11,7 @@ start-up transient the test then scored (KDN 3.0 %, kidney 9.8 % test NMSE where
 
 from __future__ import annotations
 
+import importlib.util
 import warnings
 from typing import Any
 
@@ -25,17 +26,13 @@ SEALS = SHARED_DATA / "pneumatic_seal_friction" / "friction"
 needs_seals = pytest.mark.skipif(not SEALS.is_dir(), reason=f"real friction data not found at {SEALS}")
 
 
-def _seal(name: str) -> dict[str, Any]:
-    return {
-        "path": str(SEALS / f"{name}.csv"),
-        "header": False,
-        "columns": ["t_ms", "laser_v", "pressure_v", "force_v", "position", "pressure", "force"],
-        "time_column": "t_ms",
-        "time_unit": 0.001,
-        "resample": 0.02,
-        "input": ["position", "pressure"],
-        "output": ["force"],
-    }
+def _small_data() -> Any:
+    """benchmarks/auto_small_data.py: its cases and its separate-test layout, the ones measured there."""
+    spec = importlib.util.spec_from_file_location("auto_small_data", ROOT / "benchmarks" / "auto_small_data.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def _fit(data: dict[str, Any], model: dict[str, Any]):
@@ -47,27 +44,13 @@ def _fit(data: dict[str, Any], model: dict[str, Any]):
     return fitted
 
 
-def _separate_test(name: str) -> dict[str, Any]:
-    """The recording's first 80 % to fit (75 / 25 train / validation), its last 20 % a test recording."""
-    whole = {**_seal(name), "split": {"train": 1.0}}
-    n = load_dataset(validate_spec({"name": "n", "data": whole, "model": {"family": "narx"}}, "<t>", ROOT)).n_scored(
-        "train"
-    )
-    cut = int(0.8 * n)
-    return {
-        **_seal(name),
-        "segments": [[0, cut]],
-        "split": {"train": 0.75, "validation": 0.25},
-        "test": {"segments": [[cut, n]]},
-    }
-
-
 @pytest.mark.slow
 @needs_seals
-@pytest.mark.parametrize(("name", "ceiling"), [("KDN_3bar", 0.8), ("Kidney_2bar", 0.5)])
+@pytest.mark.parametrize(("name", "ceiling"), [("kdn-3bar", 0.8), ("kidney-2bar", 0.5)])
 def test_with_a_separate_test_recording_auto_is_as_good_as_the_narx_default(name, ceiling):
     """Measured: KDN 0.57 % (NARX default 0.94), kidney 0.34 % (0.34); before, 3.0 and 9.8 %."""
-    data = _separate_test(name)
+    bench = _small_data()
+    data = bench.separate_test(bench.CASES[name])
     auto = _fit(data, {"family": "auto"})
     default = _fit(data, {"family": "narx"})
     assert any("also counts its start as a test recording's" in n for n in auto.search["notes"])

@@ -148,7 +148,7 @@ def _with_fresh_start(model, ds, rows, err2, fresh: Dataset, k: float):
 
     ranges, own = ds.ranges["validation"], fresh.ranges["validation"]
     if len(ranges) != len(own) or any(b - a != fb - fa for (_, a, b), (_, fa, fb) in zip(ranges, own)):
-        return err2
+        return err2  # not the same ranges (no layout gives this): the continuation alone
     warm = model.warmup
     first = {r: a for r, a, _ in fresh.scored("validation", warm)}
     out = err2.copy()
@@ -217,9 +217,10 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
     result.status = "diverged" if bad else "ok"
     if bad:
         result.message = f"the free run diverged on the {bad['split']} split at sample {bad['sample']}"
-    fresh = None if bad else fresh_weight(ds, task.layout)
-    result.moments = None if bad else validation_moments(model, v, runs, fresh)
+    result.moments = None if bad else validation_moments(model, v, runs)
+    fresh = None if result.moments is None else fresh_weight(ds, task.layout)
     if fresh is not None:
+        result.moments = validation_moments(model, v, runs, fresh)
         if result.moments is None:
             result.status, result.score = "diverged", None
             result.message = "the free run diverged on a validation run started as a test recording is"
