@@ -12,15 +12,10 @@ start-up transient the test then scored (KDN 3.0 %, kidney 9.8 % test NMSE where
 from __future__ import annotations
 
 import importlib.util
-import warnings
 from typing import Any
 
 import pytest
 from conftest import ROOT, SHARED_DATA
-
-from dynmodel import engine
-from dynmodel.data import load_dataset
-from dynmodel.spec import validate_spec
 
 SEALS = SHARED_DATA / "pneumatic_seal_friction" / "friction"
 needs_seals = pytest.mark.skipif(not SEALS.is_dir(), reason=f"real friction data not found at {SEALS}")
@@ -35,15 +30,6 @@ def _small_data() -> Any:
     return module
 
 
-def _fit(data: dict[str, Any], model: dict[str, Any]):
-    raw = {"name": "seal", "data": data, "model": model, "seed": 0, "evaluation": {"metrics": ["nmse"]}}
-    spec = validate_spec(raw, "<test>", ROOT)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        fitted, _ = engine.fit_dataset(spec, load_dataset(spec))
-    return fitted
-
-
 @pytest.mark.slow
 @needs_seals
 @pytest.mark.parametrize(("name", "ceiling"), [("kdn-3bar", 0.8), ("kidney-2bar", 0.5)])
@@ -51,8 +37,9 @@ def test_with_a_separate_test_recording_auto_is_as_good_as_the_narx_default(name
     """Measured: KDN 0.57 % (NARX default 0.94), kidney 0.34 % (0.34); before, 3.0 and 9.8 %."""
     bench = _small_data()
     data = bench.separate_test(bench.CASES[name])
-    auto = _fit(data, {"family": "auto"})
-    default = _fit(data, {"family": "narx"})
+    base = {"name": "seal", "data": data, "seed": 0, "evaluation": {"metrics": ["nmse"]}}
+    auto, _ = bench.fit_timed({**base, "model": {"family": "auto"}}, None)
+    default, _ = bench.fit_timed({**base, "model": {"family": "narx"}}, 1)
     assert any("also counts its start as a test recording's" in n for n in auto.search["notes"])
     assert auto.metrics["test"]["nmse"] < ceiling
     assert auto.metrics["test"]["nmse"] < 1.05 * default.metrics["test"]["nmse"]

@@ -551,7 +551,7 @@ def _protocol(
     return windows, every
 
 
-def _own_runs(recordings: list[Recording], ranges: dict[str, list[Range]], keys: set[str]) -> None:
+def own_runs(recordings: list[Recording], ranges: dict[str, list[Range]], keys: set[str]) -> None:
     """Give every range of these splits that starts inside a recording a recording of its own, so
     that its free run starts at its first sample (initialized from its own window)."""
     for key in keys:
@@ -641,7 +641,7 @@ def load_dataset(spec: Spec | ArraySpec, sources: Mapping[str, LoadedSource] | N
 
     keys = [k for k, v in ranges.items() if v and k != "train"]
     windows, every = _protocol(data, spec, bench, separate, keys)
-    _own_runs(recordings, ranges, set(windows) | every)
+    own_runs(recordings, ranges, set(windows) | every)
     ds = Dataset(
         recordings,
         {k: v for k, v in ranges.items() if v},

@@ -130,9 +130,16 @@ def pooled(results: list[Any]) -> float:
     spread no test recording is scored against). One result: its own score."""
     if len(results) == 1:
         return float(results[0].score)
+    score = moment_score(results)
+    return float(np.mean([r.score for r in results])) if score is None else score
+
+
+def moment_score(results: list[Any]) -> float | None:
+    """The NMSE (%) of the squared errors summed in ``results``' moments over their pooled denominators
+    (:func:`pooled`), mean over outputs; one result: its own NMSE. None when a result has no moments."""
     denominators = _denominators(results)
     if denominators is None:
-        return float(np.mean([r.score for r in results]))
+        return None
     sse = np.sum([r.moments["sse"] for r in results], axis=0)
     return float(np.mean(100.0 * sse / denominators))
 

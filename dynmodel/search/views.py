@@ -27,7 +27,7 @@ does: the screening variant on long data.
 
 **The start of a test recording.** When every test set starts free runs of its own (a separate test file,
 or a test range given an initialization window) while the validation split continues the free run of its
-training recording, :func:`view` with ``fresh=True`` gives the same layout with each validation range (or
+training recording, :func:`view` with ``fresh`` gives the same layout with each validation range (or
 block, or held-out tail) as a recording of its own, started as a test recording is (:func:`test_start`). The
 search scores a candidate on both (:mod:`.worker`): a model that starts from its zero state (an internal
 network) or from rest carries a start-up transient on every test recording, which the continuation hides.
@@ -41,7 +41,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from ..data.dataset import Dataset, Recording, compact_ranges, last_samples
+from ..data.dataset import Dataset, Recording, compact_ranges, last_samples, own_runs
 
 FIT_SPLITS = ("train", "validation")
 #: smallest validation block of a fold (samples)
@@ -165,22 +165,12 @@ def test_start(ds: Dataset) -> tuple[bool, int, bool]:
     return True, window, all(s in every for s in tests)
 
 
-def _own_validation_runs(ds: Dataset, window: int) -> Dataset:
+def _own_validation_runs(ds: Dataset) -> Dataset:
     """Every validation range that starts inside a recording as a recording of its own (its free run starts
-    at its first sample, from its first ``window`` samples), the validation given that window."""
-    recordings = list(ds.recordings)
-    val = []
-    for r, a, b in ds.ranges.get("validation", []):
-        if a > 0:
-            rec = ds.recordings[r]
-            recordings.append(_cut(rec, a, b, f"validation:{rec.name}[{a}:{b}]"))
-            val.append((len(recordings) - 1, 0, b - a))
-        else:
-            val.append((r, a, b))
-    out = _rebuild(ds, recordings, {**ds.ranges, "validation": val})
-    if window:
-        out = dataclasses.replace(out, windows={**_windows(out), "validation": window})
-    return out
+    at its first sample), as the data loader does for a split with an initialization window."""
+    recordings, ranges = list(ds.recordings), {k: list(v) for k, v in ds.ranges.items()}
+    own_runs(recordings, ranges, {"validation"})
+    return _rebuild(ds, recordings, ranges)
 
 
 def possible_folds(ds: Dataset, wanted: int, min_block: int = MIN_BLOCK) -> int:
@@ -206,8 +196,8 @@ def validated_folds(ds: Dataset, k: int) -> list[int]:
     return list(range(1, k))
 
 
-def fold(ds: Dataset, i: int, k: int, own_runs: bool = False) -> Dataset:
-    """Fold ``i`` of ``k`` (see the module docstring); ``own_runs``: every validation block a run of its own
+def fold(ds: Dataset, i: int, k: int, apart: bool = False) -> Dataset:
+    """Fold ``i`` of ``k`` (see the module docstring); ``apart``: every validation block a run of its own
     even without a validation window."""
     window = _windows(ds).get("validation", 0)
     train: list[tuple[int, int, int]] = []
@@ -221,7 +211,7 @@ def fold(ds: Dataset, i: int, k: int, own_runs: bool = False) -> Dataset:
             train.append((r, a, lo))
         if hi < b:
             train.append((r, hi, b))
-        if window or own_runs:
+        if window or apart:
             separate.append((r, lo, hi))
         else:
             val.append((r, lo, hi))
@@ -263,19 +253,21 @@ def recording_fold(ds: Dataset, i: int) -> Dataset:
     return _compact(ds, {"train": train, "validation": val})
 
 
-def view(ds: Dataset, layout: Layout, fresh: bool = False) -> Dataset:
+def view(ds: Dataset, layout: Layout, fresh: tuple[int, bool] | None = None) -> Dataset:
     """The dataset a candidate is fitted on under ``layout``: the split of the layout's kind, then its
-    training cut to the last ``layout.samples`` samples (0: all). ``fresh``: every validation range a run of
-    its own, started as the test sets are (:func:`test_start`; only where they are runs of their own)."""
-    fresh, window, whole = test_start(ds) if fresh else (False, 0, False)
-    if fresh and window:
-        ds = dataclasses.replace(ds, windows={**_windows(ds), "validation": window})
-    if fresh and whole:
-        ds = dataclasses.replace(ds, score_all={*ds.score_all, "validation"})
+    training cut to the last ``layout.samples`` samples (0: all). ``fresh``: (window, whole) of test sets that
+    start runs of their own (:func:`test_start`): every validation range a run of its own, started as they
+    are (from that window, or scored whole)."""
+    if fresh is not None:
+        window, whole = fresh
+        if window:
+            ds = dataclasses.replace(ds, windows={**_windows(ds), "validation": window})
+        if whole:
+            ds = dataclasses.replace(ds, score_all={*ds.score_all, "validation"})
     if layout.kind == "fold":
-        ds = fold(ds, layout.fold, layout.folds, own_runs=fresh)
+        ds = fold(ds, layout.fold, layout.folds, apart=fresh is not None)
     elif layout.kind == "recording":
         ds = recording_fold(ds, layout.fold)
-    elif fresh:
-        ds = _own_validation_runs(ds, window)
+    elif fresh is not None:
+        ds = _own_validation_runs(ds)
     return screen(ds, layout.samples or None)

@@ -95,11 +95,9 @@ def _score(metrics: dict[str, Any]) -> float | None:
     return None if value is None else float(value)
 
 
-def validation_moments(model, ds, runs, fresh: tuple[Any, float] | None = None) -> dict[str, Any] | None:
-    """Sums over the scored validation samples (the training split when there is none): the count, and per
-    output the squared free-run error, the measured output's sum and sum of squares; None after a divergence.
-    ``fresh``: (the view with each validation range a run of its own, weight k): the squared errors count
-    that fresh start with weight k (:func:`_with_fresh_start`)."""
+def validation_errors(model, ds, runs) -> tuple[str, list[Any], Any, Any] | None:
+    """(split, rows, measured outputs, squared free-run errors) over the scored samples of the validation
+    split (the training split when there is none); None when nothing is scored or the run is not finite."""
     import numpy as np
 
     split = "validation" if ds.ranges.get("validation") else "train"
@@ -110,11 +108,13 @@ def validation_moments(model, ds, runs, fresh: tuple[Any, float] | None = None) 
     yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])
     if not np.isfinite(yhat).all():
         return None
-    err2 = (y - yhat) ** 2
-    if fresh is not None and split == "validation":
-        err2 = _with_fresh_start(model, ds, rows, err2, *fresh)
-        if err2 is None:
-            return None
+    return split, rows, y, (y - yhat) ** 2
+
+
+def validation_moments(ds, split: str, rows: list[Any], y, err2) -> dict[str, Any]:
+    """Sums over the scored samples ``rows`` of ``split`` (:func:`validation_errors`): the count, and per output
+    the squared free-run errors ``err2``, the measured output's sum and sum of squares, and the errors summed
+    over blocks (:func:`_block_sums`)."""
     return {
         "n": int(len(y)),
         "sse": err2.sum(axis=0).tolist(),
@@ -129,9 +129,12 @@ def fresh_weight(ds: Dataset, layout: Layout) -> tuple[Dataset, float] | None:
     of their own and the layout's validation does not (:func:`.views.test_start`); None otherwise. A test
     recording of T samples carries its start-up transient once, so per sample it weighs 1 / T; in a
     validation run of V samples it weighs 1 / V: k = min(1, V / T), with the mean lengths of both."""
-    if layout.kind == "recording" or not test_start(ds)[0]:
+    if layout.kind == "recording":
         return None
-    vf = view(ds, layout, fresh=True)
+    starts_fresh, window, whole = test_start(ds)
+    if not starts_fresh:
+        return None
+    vf = view(ds, layout, fresh=(window, whole))
     val = [b - a for _, a, b in vf.ranges.get("validation", [])]
     tests = [b - a for s in ds.test_splits() for _, a, b in ds.ranges[s]]
     if not val or not tests:
@@ -202,11 +205,10 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any) -> dict[str, Any]:
 
 
 def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
-    import numpy as np
-
     from .. import engine, protocol
     from ..usefulness import input_dependence
     from .checks import band_checks, complexity
+    from .select import moment_score
 
     v = view(ds, task.layout)
     model, runs = engine.fit_dataset(spec, v)
@@ -217,18 +219,19 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
     result.status = "diverged" if bad else "ok"
     if bad:
         result.message = f"the free run diverged on the {bad['split']} split at sample {bad['sample']}"
-    result.moments = None if bad else validation_moments(model, v, runs)
-    fresh = None if result.moments is None else fresh_weight(ds, task.layout)
-    if fresh is not None:
-        result.moments = validation_moments(model, v, runs, fresh)
-        if result.moments is None:
-            result.status, result.score = "diverged", None
+    errors = None if bad else validation_errors(model, v, runs)
+    fresh = fresh_weight(ds, task.layout) if errors is not None and errors[0] == "validation" else None
+    if errors is not None and fresh is not None:
+        split, rows, y, err2 = errors
+        mixed = _with_fresh_start(model, v, rows, err2, *fresh)
+        if mixed is None:
+            errors, result.status, result.score = None, "diverged", None
             result.message = "the free run diverged on a validation run started as a test recording is"
-        else:  # the score with the fresh start mixed in: per output 100 sse / (n var), averaged
-            m = result.moments
-            n = m["n"]
-            var = np.maximum(np.asarray(m["sumsq"]) / n - (np.asarray(m["sum"]) / n) ** 2, np.finfo(float).tiny)
-            result.score = float(np.mean(100.0 * np.asarray(m["sse"]) / n / var))
+        else:
+            errors = (split, rows, y, mixed)
+    result.moments = None if errors is None else validation_moments(v, *errors)
+    if fresh is not None and result.moments is not None:  # the score with the fresh start mixed in
+        result.score = moment_score([result])
     result.checks = band_checks(model, ds)
     try:
         result.dependence = None if bad else input_dependence(model, v, runs=runs)
