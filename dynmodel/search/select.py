@@ -65,6 +65,7 @@ class Summary:
     seconds: float = 0.0
     blocks: np.ndarray | None = None  # the median seed's score over validation blocks (:func:`block_scores`)
     blocks_on: tuple = ()  # the views (layouts) those blocks lie in: only blocks of the same views are compared
+    continued: np.ndarray | None = None  # the same blocks of the continued run alone, where a fresh start was mixed in
 
     @property
     def finite(self) -> bool:
@@ -144,36 +145,45 @@ def moment_score(results: list[Any]) -> float | None:
     return float(np.mean(100.0 * sse / denominators))
 
 
-def block_scores(results: list[Any]) -> np.ndarray | None:
+def block_scores(results: list[Any], errors: str = "sse") -> np.ndarray | None:
     """The pooled validation NMSE (%) of ``results`` (the folds of one seed, in key order) split over the
     consecutive blocks of every fold (:data:`.worker.BLOCKS` each): block ``b`` holds its squared errors over
     the pooled denominator, scaled to the block's full size where a warmup left samples out, so that the
     blocks sum to about the score and two candidates' blocks cover the same samples; NaN for a block a
-    warmup left entirely unscored. None without blocks."""
+    warmup left entirely unscored. ``errors``: ``sse`` (the errors scored) or ``continued`` (those of the
+    continued run alone, before a fresh start was mixed in). None without those blocks."""
     denominators = _denominators(results)
-    if denominators is None or any("blocks" not in r.moments for r in results):
+    if denominators is None or any(errors not in (r.moments.get("blocks") or {}) for r in results):
         return None
     parts = []
     for r in results:
         b = r.moments["blocks"]
         n, full = np.asarray(b["n"], dtype=float), np.asarray(b["full"], dtype=float)
         scale = np.divide(full, n, out=np.full_like(full, np.nan), where=n > 0)  # NaN: a block not scored
-        parts.append(np.mean(100.0 * np.asarray(b["sse"]) * scale[:, None] / denominators, axis=1))
+        parts.append(np.mean(100.0 * np.asarray(b[errors]) * scale[:, None] / denominators, axis=1))
     return np.concatenate(parts)
 
 
 def paired_difference(a: Summary, b: Summary) -> tuple[float, float] | None:
     """How much worse ``a`` validates than ``b`` summed over the same blocks, and the standard error of that
     sum from the spread of the block-wise differences (a paired comparison: the noise both candidates see
-    cancels block by block, what differs between the models does not). None unless both were validated on
-    the same views, in as many blocks, and at least three blocks that both scored."""
+    cancels block by block, what differs between the models does not). When both scores mix in a fresh
+    start (the test recordings start runs of their own, :func:`.worker.fresh_weight`), the spread is that of
+    the continued runs' block differences: a start-up transient sits in the first block of every validation
+    run as it does on every test recording, a difference the models make each time, not noise (a linear
+    output-error model started from rest: 0.16 of its 0.24 % excess in one block of ten, which the spread of
+    the mixed blocks took for noise). None unless both were validated on the same views, in as many blocks,
+    and at least three blocks that both scored."""
     if a.blocks is None or b.blocks is None or a.blocks_on != b.blocks_on or a.blocks.shape != b.blocks.shape:
         return None
     d = a.blocks - b.blocks
-    d = d[np.isfinite(d)]  # the blocks both scored (a long warmup can leave the first unscored)
-    if d.size < 3:
+    both = np.isfinite(d)  # the blocks both scored (a long warmup can leave the first unscored)
+    if both.sum() < 3:
         return None
-    return float(d.sum()), float(np.sqrt(d.size) * d.std(ddof=1))
+    spread = d
+    if a.continued is not None and b.continued is not None and a.continued.shape == d.shape == b.continued.shape:
+        spread = a.continued - b.continued
+    return float(d[both].sum()), float(np.sqrt(both.sum()) * spread[both].std(ddof=1))
 
 
 def summarize(results: list[Any]) -> Summary | None:
@@ -198,9 +208,11 @@ def summarize(results: list[Any]) -> Summary | None:
         ok_seeds[seed] = failed <= allowed and usable
     score, median = _median_seed(scores)
     blocks: np.ndarray | None = None
+    continued: np.ndarray | None = None
     blocks_on: tuple = ()
     if median is not None and math.isfinite(scores[median]):
         blocks = block_scores(by_seed[median])
+        continued = block_scores(by_seed[median], "continued")
         blocks_on = tuple(tuple(sorted(r.layout.items())) for r in by_seed[median])
     ok = sum(ok_seeds.values()) * 2 >= len(ok_seeds) and (median is None or ok_seeds.get(median, False))
     chosen = by_seed.get(median, fits) if median is not None else fits
@@ -231,6 +243,7 @@ def summarize(results: list[Any]) -> Summary | None:
         seconds=float(sum(r.seconds for r in fits)),
         blocks=blocks,
         blocks_on=blocks_on,
+        continued=continued,
     )
 
 

@@ -221,6 +221,7 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
         result.message = f"the free run diverged on the {bad['split']} split at sample {bad['sample']}"
     errors = None if bad else validation_errors(model, v, runs)
     fresh = fresh_weight(ds, task.layout) if errors is not None and errors[0] == "validation" else None
+    continued = None
     if errors is not None and fresh is not None:
         split, rows, y, err2 = errors
         mixed = _with_fresh_start(model, v, rows, err2, *fresh)
@@ -229,7 +230,12 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
             result.message = "the free run diverged on a validation run started as a test recording is"
         else:
             errors = (split, rows, y, mixed)
+            # the continuation's errors over the same blocks: their spread measures the noise of a paired
+            # comparison, which the start-up transient (the same on every test recording) is not
+            continued = _block_sums(v.scored(split, 0), rows, err2)["sse"]
     result.moments = None if errors is None else validation_moments(v, *errors)
+    if continued is not None and result.moments is not None:
+        result.moments["blocks"]["continued"] = continued
     if fresh is not None and result.moments is not None:  # the score with the fresh start mixed in
         result.score = moment_score([result])
     result.checks = band_checks(model, ds)
