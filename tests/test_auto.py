@@ -604,14 +604,15 @@ class Startup(Family):
         m.W_, m.w0_ = np.asarray(arrays["W"]), np.asarray(arrays["w0"])
         return m
 
+    #: the starting candidates (no neighbours)
+    starting = (
+        Candidate("startup", {"kick": 3.0}, "exact, a start-up transient", work=0.01),
+        Candidate("startup", {"shrink": 0.05}, "slope shrunk by 5 %, no transient", work=0.01),
+    )
+
     @classmethod
     def search_space(cls, ctx, around=None):
-        if around is not None:
-            return []
-        return [
-            Candidate("startup", {"kick": 3.0}, "exact, a start-up transient", work=0.01),
-            Candidate("startup", {"shrink": 0.05}, "slope shrunk by 5 %, no transient", work=0.01),
-        ]
+        return [] if around is not None else list(cls.starting)
 
 
 def test_a_model_whose_start_the_test_files_show_is_not_chosen_on_its_continuation(tmp_path, monkeypatch):
@@ -648,17 +649,13 @@ def test_a_model_whose_start_the_test_files_show_is_not_chosen_on_its_continuati
 class SizedStartup(Startup):
     """:class:`Startup` whose size says the model with a transient is the simpler one (2 parameters, else 10)."""
 
+    starting = (
+        Candidate("startup", {"kick": 0.5}, "exact, a start-up transient, small", work=0.01),
+        Candidate("startup", {}, "exact, no transient, large", work=0.01),
+    )
+
     def summary(self) -> dict[str, Any]:
         return {"parameters": 2 if self.params.kick else 10}
-
-    @classmethod
-    def search_space(cls, ctx, around=None):
-        if around is not None:
-            return []
-        return [
-            Candidate("startup", {"kick": 0.5}, "exact, a start-up transient, small", work=0.01),
-            Candidate("startup", {}, "exact, no transient, large", work=0.01),
-        ]
 
 
 def test_on_noisy_data_a_start_up_transient_is_not_taken_for_noise(tmp_path, monkeypatch):
