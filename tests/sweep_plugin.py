@@ -28,7 +28,23 @@ class SleepyParams(FamilyParams):
     crash: bool = Field(False, description="every fit kills its own process (a point that always crashes)")
 
 
-class Sleepy(Family):
+class AffineArrays:
+    """The stored arrays of a test family fitted as an affine map y = u W + w0 (``W_``, ``w0_``)."""
+
+    W_: np.ndarray
+    w0_: np.ndarray
+
+    def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        return {"W": self.W_, "w0": self.w0_}, {}
+
+    @classmethod
+    def from_arrays(cls, params, arrays, attrs):
+        model = cls(**params)
+        model.W_, model.w0_ = np.asarray(arrays["W"]), np.asarray(arrays["w0"])
+        return model
+
+
+class Sleepy(AffineArrays, Family):
     name = "sleepy"
     description = "test family: an affine map whose first fit can stall"
     Params = SleepyParams
@@ -52,15 +68,6 @@ class Sleepy(Family):
 
     def simulate(self, u, y_measured=None, bounds=None):
         return Simulation(np.asarray(u) @ self.W_ + self.w0_)
-
-    def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        return {"W": self.W_, "w0": self.w0_}, {}
-
-    @classmethod
-    def from_arrays(cls, params, arrays, attrs):
-        model = cls(**params)
-        model.W_, model.w0_ = np.asarray(arrays["W"]), np.asarray(arrays["w0"])
-        return model
 
 
 def worker_facts() -> dict[str, Any]:

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from conftest import narx, write_csv, write_yaml
 from pydantic import Field
+from sweep_plugin import AffineArrays
 
 import dynmodel
 from dynmodel import engine, registry, store
@@ -573,7 +574,7 @@ class StartupParams(FamilyParams):
     shrink: float = Field(0.0, description="the slope shrunk by this fraction")
 
 
-class Startup(Family):
+class Startup(AffineArrays, Family):
     """A static affine map fitted by least squares, its slope shrunk by ``shrink``, plus a start-up transient
     ``kick`` exp(-t / 20) at the start of every free run (what an internal network's zero state does)."""
 
@@ -594,15 +595,6 @@ class Startup(Family):
     def simulate(self, u, y_measured=None, bounds=None):
         start = self.params.kick * np.exp(-np.arange(len(u)) / 20.0)[:, None]
         return Simulation(np.asarray(u) @ self.W_ + self.w0_ + start)
-
-    def to_arrays(self):
-        return {"W": self.W_, "w0": self.w0_}, {}
-
-    @classmethod
-    def from_arrays(cls, params, arrays, attrs):
-        m = cls(**params)
-        m.W_, m.w0_ = np.asarray(arrays["W"]), np.asarray(arrays["w0"])
-        return m
 
     #: the starting candidates (no neighbours)
     starting = (

@@ -132,15 +132,22 @@ HELD_SAMPLES = 10
 HELD_BY = 1e-3
 
 
-def _held_start(ds: Dataset, rec: int) -> bool:
-    """Do the inputs of recording ``rec`` stay at their first value over its first :data:`HELD_SAMPLES`
-    samples (within :data:`HELD_BY` of the training input range)?"""
+def _held_start(ds: Dataset, recs: list[int]) -> bool:
+    """Do the inputs of any recording of ``recs`` stay at their first value over its first
+    :data:`HELD_SAMPLES` samples (within :data:`HELD_BY` of the training input range; without a training
+    split, of that recording's own range)?"""
     import numpy as np
 
-    u = ds.concat_inputs("train")[0] if ds.ranges.get("train") else ds.recordings[rec].u
-    width = np.nanmax(u, axis=0) - np.nanmin(u, axis=0)
-    head = ds.recordings[rec].u[:HELD_SAMPLES]
-    return bool(np.all(np.nanmax(np.abs(head - head[0]), axis=0) <= HELD_BY * width))
+    def width(u):
+        return np.nanmax(u, axis=0) - np.nanmin(u, axis=0)
+
+    train = width(ds.concat_inputs("train")[0]) if ds.ranges.get("train") else None
+    for rec in recs:
+        head = ds.recordings[rec].u[:HELD_SAMPLES]
+        scale = train if train is not None else width(ds.recordings[rec].u)
+        if np.all(np.nanmax(np.abs(head - head[0]), axis=0) <= HELD_BY * scale):
+            return True
+    return False
 
 
 def test_start(ds: Dataset) -> tuple[bool, int, bool]:
@@ -160,7 +167,7 @@ def test_start(ds: Dataset) -> tuple[bool, int, bool]:
     if not all(r not in fitting and a == 0 for s in tests for r, a, _ in ds.ranges[s]):
         return False, 0, False
     window = min((_windows(ds).get(s, 0) for s in tests), default=0)
-    if not window and any(_held_start(ds, r) for s in tests for r, _, _ in ds.ranges[s]):
+    if not window and _held_start(ds, [r for s in tests for r, _, _ in ds.ranges[s]]):
         return False, 0, False
     return True, window, all(s in every for s in tests)
 

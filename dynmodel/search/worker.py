@@ -111,16 +111,17 @@ def validation_errors(model, ds, runs) -> tuple[str, list[Any], Any, Any] | None
     return split, rows, y, (y - yhat) ** 2
 
 
-def validation_moments(ds, split: str, rows: list[Any], y, err2) -> dict[str, Any]:
+def validation_moments(ds, split: str, rows: list[Any], y, err2, continued=None) -> dict[str, Any]:
     """Sums over the scored samples ``rows`` of ``split`` (:func:`validation_errors`): the count, and per output
     the squared free-run errors ``err2``, the measured output's sum and sum of squares, and the errors summed
-    over blocks (:func:`_block_sums`)."""
+    over blocks (:func:`_block_sums`; ``continued``: the continued run's errors where ``err2`` mixes in a fresh
+    start, summed over the same blocks)."""
     return {
         "n": int(len(y)),
         "sse": err2.sum(axis=0).tolist(),
         "sum": y.sum(axis=0).tolist(),
         "sumsq": (y**2).sum(axis=0).tolist(),
-        "blocks": _block_sums(ds.scored(split, 0), rows, err2),
+        "blocks": _block_sums(ds.scored(split, 0), rows, err2, continued),
     }
 
 
@@ -177,12 +178,14 @@ def _with_fresh_start(model, ds, rows, err2, fresh: Dataset, k: float):
     return out
 
 
-def _block_sums(full: list[Any], rows: list[Any], err2: Any) -> dict[str, Any]:
+def _block_sums(full: list[Any], rows: list[Any], err2: Any, continued: Any = None) -> dict[str, Any]:
     """The squared errors ``err2`` (of the samples of ``rows``) summed in :data:`BLOCKS` consecutive blocks of
     ``full``, the split's samples scored by a model without warmup. The blocks sit at the same samples for
     every candidate, whatever its warmup (``rows`` only start later), so that two candidates can be compared
     block by block (:func:`.select.paired_difference`): ``n`` samples scored per block, ``full`` samples per
-    block, ``sse`` per block and output."""
+    block, ``sse`` per block and output (and ``continued``, the same sums of ``continued`` when given: the
+    continued run's errors where ``err2`` mixes in a fresh start, whose spread measures the noise of a paired
+    comparison, which a start-up transient, the same on every test recording, is not)."""
     import numpy as np
 
     offsets: dict[int, list[tuple[int, int, int]]] = {}
@@ -195,13 +198,20 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any) -> dict[str, Any]:
         a0, _, off = next(x for x in offsets[rec] if x[0] <= a < x[1])
         positions.append(np.arange(a, b) - a0 + off)
     block = np.concatenate(positions) * BLOCKS // max(total, 1)
-    sse = np.zeros((BLOCKS, err2.shape[1]))
-    np.add.at(sse, block, err2)
-    return {
+
+    def summed(errors: Any) -> list[Any]:
+        sums = np.zeros((BLOCKS, errors.shape[1]))
+        np.add.at(sums, block, errors)
+        return sums.tolist()
+
+    out = {
         "n": np.bincount(block, minlength=BLOCKS).tolist(),
         "full": np.bincount(np.arange(total) * BLOCKS // max(total, 1), minlength=BLOCKS).tolist(),
-        "sse": sse.tolist(),
+        "sse": summed(err2),
     }
+    if continued is not None:
+        out["continued"] = summed(continued)
+    return out
 
 
 def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
@@ -229,13 +239,8 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
             errors, result.status, result.score = None, "diverged", None
             result.message = "the free run diverged on a validation run started as a test recording is"
         else:
-            errors = (split, rows, y, mixed)
-            # the continuation's errors over the same blocks: their spread measures the noise of a paired
-            # comparison, which the start-up transient (the same on every test recording) is not
-            continued = _block_sums(v.scored(split, 0), rows, err2)["sse"]
-    result.moments = None if errors is None else validation_moments(v, *errors)
-    if continued is not None and result.moments is not None:
-        result.moments["blocks"]["continued"] = continued
+            errors, continued = (split, rows, y, mixed), err2
+    result.moments = None if errors is None else validation_moments(v, *errors, continued)
     if fresh is not None and result.moments is not None:  # the score with the fresh start mixed in
         result.score = moment_score([result])
     result.checks = band_checks(model, ds)
