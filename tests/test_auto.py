@@ -1004,6 +1004,49 @@ def test_nothing_beating_the_linear_reference_keeps_a_gain_the_validation_resolv
     assert choose({"big": big, "small": kicked}, labels, reference=1.05).key == "big"
 
 
+def test_a_short_cross_validation_resolves_a_gain_fold_by_fold_not_block_by_block():
+    """Cross-validated (a short record): four scored folds of ten blocks each. A larger model that validates
+    about 4 % better in every fold is kept over the simplest one in the 10 % tie; one whose gain sits in a
+    single fold (ten correlated blocks of one short fold, which block by block would look like forty
+    independent draws) is not resolved, and the simpler one wins. Inputs beyond the training range keep the
+    10 % tie whatever the folds say."""
+    from dynmodel.search.select import paired_difference
+
+    labels = {"big": "big", "small": "small"}
+    rng = np.random.default_rng(1)
+    folds, per_fold = 4, 10
+    steady = 0.25 + 0.01 * rng.standard_normal(folds * per_fold)  # sums to about 10 (% NMSE)
+    everywhere = steady + 0.01  # 0.4 worse in all, about 0.1 per fold
+    one_fold = steady.copy()
+    one_fold[:per_fold] += 0.04  # the same 0.4, all of it in the first fold
+    short = "the validation split has only 800 scored samples: the candidates were cross-validated in 5 blocks"
+
+    def pair(small_blocks, **kw):
+        big = _blocks(float(steady.sum()), list(steady))
+        big.complexity = 50
+        small = _blocks(float(small_blocks.sum()), list(small_blocks))
+        return choose({"big": big, "small": small}, labels, short_validation=short, fold_blocks=per_fold, **kw)
+
+    kept = pair(everywhere)
+    assert kept.key == "big" and kept.verdicts["small"] == "validates worse (fold by fold)"
+    assert "fold by fold" in kept.notes[0] and "cross-validated" in kept.notes[0]
+    tied = pair(one_fold)
+    assert tied.key == "small" and "does not resolve the difference fold by fold" in tied.notes[0]
+    # block by block, the one-fold gain would pass for resolved: forty blocks, ten of them all different
+    a, b = _blocks(0.0, list(one_fold)), _blocks(0.0, list(steady))
+    by_block, by_fold = paired_difference(a, b), paired_difference(a, b, per_fold)
+    assert by_block is not None and by_block[0] > 2 * by_block[1]
+    assert by_fold is not None and by_fold[0] == pytest.approx(by_block[0]) and by_fold[0] < 2 * by_fold[1]
+    assert pair(everywhere, excursion=0.3).key == "small"
+    # a short hold-out validation (no folds to compare) keeps the 10 % tie as before
+    big = _blocks(float(steady.sum()), list(steady))
+    big.complexity = 50
+    held = choose(
+        {"big": big, "small": _blocks(float(everywhere.sum()), list(everywhere))}, labels, short_validation=short
+    )
+    assert held.key == "small"
+
+
 def test_validation_blocks_sit_at_the_same_samples_whatever_the_warmup():
     """The blocks two candidates are compared on cover the same samples: a model with a warmup of 25 scores
     fewer samples in the first blocks, and its block scores are scaled to the blocks' full size; without a

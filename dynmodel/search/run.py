@@ -44,7 +44,7 @@ from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
 from .views import Layout, possible_folds, possible_recording_folds, validated_folds, view
-from .worker import Task, TaskResult, fresh_weight, run_task
+from .worker import BLOCKS, Task, TaskResult, fresh_weight, run_task
 
 if TYPE_CHECKING:
     from ..spec import Spec
@@ -689,6 +689,7 @@ class Search:
             excursion=self.ctx.excursion,
             reference=self._reference_score(),
             uses_inputs=self.ctx.n_inputs > 0,
+            fold_blocks=BLOCKS if self.mode == "folds" else 0,
         )
         for k, e in self.entries.items():
             if k in choice.verdicts:

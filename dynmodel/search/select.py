@@ -17,10 +17,12 @@ The **choice** (:func:`choose`), in order:
    :data:`TIE` (1 %) normally, and :data:`CAUTIOUS_TIE` (10 %) when the validation cannot be trusted
    to rank finely: a short validation (cross-validated, or fewer than ``short`` scored samples), test
    inputs that leave the training range by more than :data:`EXTRAPOLATION` of its width, or no candidate
-   that beats the linear reference by :data:`REFERENCE_MARGIN`. When the last is the only reason, a larger
-   candidate stays out of the tie if it validates worse than the best by more than :data:`RESOLVED`
-   standard errors of a paired, block-wise comparison (:func:`paired_difference`): the validation resolves
-   that difference. The report says when the simpler one was preferred, and why.
+   that beats the linear reference by :data:`REFERENCE_MARGIN`. When the only reasons are the last, or a
+   short validation that was cross-validated, a candidate stays out of the tie if it validates worse than
+   the best by more than :data:`RESOLVED` standard errors of a paired comparison (:func:`paired_difference`):
+   block by block, or fold by fold when cross-validated. The validation resolves that difference. Not when
+   the test inputs leave the training range or recordings are left out in turn: validation cannot rank
+   extrapolation. The report says when the simpler one was preferred, and why.
 """
 
 from __future__ import annotations
@@ -164,7 +166,7 @@ def block_scores(results: list[Any], errors: str = "sse") -> np.ndarray | None:
     return np.concatenate(parts)
 
 
-def paired_difference(a: Summary, b: Summary) -> tuple[float, float] | None:
+def paired_difference(a: Summary, b: Summary, group: int = 1) -> tuple[float, float] | None:
     """How much worse ``a`` validates than ``b`` summed over the same blocks, and the standard error of that
     sum from the spread of the block-wise differences (a paired comparison: the noise both candidates see
     cancels block by block, what differs between the models does not). When both scores mix in a fresh
@@ -172,17 +174,23 @@ def paired_difference(a: Summary, b: Summary) -> tuple[float, float] | None:
     the continued runs' block differences: a start-up transient sits in the first block of every validation
     run as it does on every test recording, a difference the models make each time, not noise (a linear
     output-error model started from rest: 0.16 of its 0.24 % excess in one block of ten, which the spread of
-    the mixed blocks took for noise). None unless both were validated on the same views, in as many blocks,
-    and at least three blocks that both scored."""
+    the mixed blocks took for noise). ``group``: consecutive blocks summed into one unit before the spread is
+    taken (a fold's blocks in a blocked cross-validation: the blocks of one short fold are correlated, so
+    their spread would understate the noise; folds apart from each other much less so). None unless both
+    were validated on the same views, in as many blocks, and at least three units that both scored."""
     if a.blocks is None or b.blocks is None or a.blocks_on != b.blocks_on or a.blocks.shape != b.blocks.shape:
         return None
     d = a.blocks - b.blocks
     both = np.isfinite(d)  # the blocks both scored (a long warmup can leave the first unscored)
-    if both.sum() < 3:
-        return None
     spread = d
     if a.continued is not None and b.continued is not None and a.continued.shape == d.shape == b.continued.shape:
         spread = a.continued - b.continued
+    if group > 1 and d.size % group == 0:
+        d = np.where(both, d, 0.0).reshape(-1, group).sum(axis=1)
+        spread = np.where(both, spread, 0.0).reshape(-1, group).sum(axis=1)
+        both = both.reshape(-1, group).any(axis=1)
+    if both.sum() < 3:
+        return None
     return float(d[both].sum()), float(np.sqrt(both.sum()) * spread[both].std(ddof=1))
 
 
@@ -272,11 +280,13 @@ def choose(
     excursion: float = 0.0,
     reference: float | None = None,
     uses_inputs: bool = True,
+    fold_blocks: int = 0,
 ) -> Choice:
     """The winner among ``summaries`` (candidate key -> Summary at the deciding level), see the module
     docstring. ``labels``: key -> a short description for the notes. ``short_validation``: why the
     validation is short (None when it is not); ``excursion``: how far test inputs leave the training
-    range; ``reference``: the linear reference's score at the same level."""
+    range; ``reference``: the linear reference's score at the same level; ``fold_blocks``: when the short
+    validation is a blocked cross-validation, the blocks of each fold (the paired comparison sums them)."""
     out = Choice(None)
     order = sorted(summaries, key=lambda k: (summaries[k].score, k))
     for k in order:
@@ -309,40 +319,46 @@ def choose(
             )
             eligible = [k for k in eligible if not ignores_input(summaries[k])]
             best = summaries[eligible[0]].score
+    # the validation can itself say whether it resolves a gain when its only doubts are its size (a short
+    # cross-validation: compared fold by fold) or a gain over the linear reference too small to trust at
+    # once; not when the models will extrapolate, nor across recordings at other operating points
+    pairable = True
     if short_validation:
         out.cautious.append(short_validation)
+        pairable = fold_blocks > 1
     if excursion > EXTRAPOLATION:
         out.cautious.append(f"the test inputs leave the training range by {100 * excursion:.0f} % of its width")
+        pairable = False
     top = eligible[0]
-    paired = False
     if reference is not None and math.isfinite(reference) and not best <= REFERENCE_MARGIN * reference:
-        reason = (
+        out.cautious.append(
             f"no candidate beats the linear reference (validation NMSE {reference:.3g} %) by "
             f"{100 * (1 - REFERENCE_MARGIN):.0f} %"
         )
-        # the only doubt is the size of the gain: the validation itself can say whether it resolves it
-        paired = not out.cautious
-        out.cautious.append(reason)
+    paired = bool(out.cautious) and pairable
+    group = fold_blocks if short_validation else 1
+    by = "fold by fold" if group > 1 else "block by block"
     tie = CAUTIOUS_TIE if out.cautious else TIE
     close = [k for k in eligible if summaries[k].score <= best * (1 + tie) or summaries[k].score == best]
     resolved: set[str] = set()
     if paired:
         for k in close:
-            diff = None if summaries[k].score <= best * (1 + TIE) else paired_difference(summaries[k], summaries[top])
+            worse = summaries[k].score > best * (1 + TIE)
+            diff = paired_difference(summaries[k], summaries[top], group) if worse else None
             if diff is not None and diff[0] > RESOLVED * diff[1]:
                 resolved.add(k)
         close = [k for k in close if k not in resolved]
     simplest = min(close, key=lambda k: (_size(summaries[k]), summaries[k].score, k))
     if simplest == top and any(_size(summaries[k]) < _size(summaries[top]) for k in resolved):
         out.notes.append(
-            f"{out.cautious[-1]}, but {labels[top]} validates better than the simpler candidates block by block "
+            f"{'; '.join(out.cautious)}, but {labels[top]} validates better than the simpler candidates {by} "
             f"(by more than {RESOLVED:g} standard errors of the difference), and is kept"
         )
     out.key = simplest
     if simplest != top:
         why = "; ".join(out.cautious) if out.cautious else "the difference is within 1 %"
         if paired:
-            why += f", and the validation does not resolve the difference block by block (within {RESOLVED:g} standard errors)"
+            why += f", and the validation does not resolve the difference {by} (within {RESOLVED:g} standard errors)"
         out.notes.append(
             f"chose the simpler {labels[simplest]} (validation NMSE {summaries[simplest].score:.4g} %, size "
             f"{summaries[simplest].complexity:.0f}) over {labels[top]} ({summaries[top].score:.4g} %, size "
@@ -354,5 +370,5 @@ def choose(
         elif k not in out.verdicts:
             out.verdicts[k] = "within the tie, larger" if k in close else "validates worse"
             if k in resolved:
-                out.verdicts[k] = "validates worse (block by block)"
+                out.verdicts[k] = f"validates worse ({by})"
     return out
