@@ -639,7 +639,8 @@ def test_a_model_whose_start_the_test_files_show_is_not_chosen_on_its_continuati
 
 
 class SizedStartup(Startup):
-    """:class:`Startup` whose size says the model with a transient is the simpler one (2 parameters, else 10)."""
+    """:class:`Startup` whose size says the model that departs from the exact one (a transient, a shrunk
+    slope) is the simpler one (2 parameters, else 10)."""
 
     starting = (
         Candidate("startup", {"kick": 0.5}, "exact, a start-up transient, small", work=0.01),
@@ -647,7 +648,23 @@ class SizedStartup(Startup):
     )
 
     def summary(self) -> dict[str, Any]:
-        return {"parameters": 2 if self.params.kick else 10}
+        return {"parameters": 2 if self.params.kick or self.params.shrink else 10}
+
+
+def _search_sized(family: type, tmp_path, monkeypatch, train: dict, test: dict):
+    """``family: auto`` over the test family ``family`` alone, on ``train`` and a separate ``test`` file."""
+    installed = registry.families()
+    monkeypatch.setattr(registry, "families", lambda: {**installed, "startup": family})
+    spec_model.cache_clear()
+    write_csv(tmp_path / "train.csv", train)
+    write_csv(tmp_path / "test.csv", test)
+    raw = _raw(families=["startup"], budget=1)
+    del raw["data"]["init_window"]
+    try:
+        model, _ = _fit(raw, tmp_path)
+    finally:
+        spec_model.cache_clear()
+    return model
 
 
 def test_on_noisy_data_a_start_up_transient_is_not_taken_for_noise(tmp_path, monkeypatch):
@@ -657,19 +674,10 @@ def test_on_noisy_data_a_start_up_transient_is_not_taken_for_noise(tmp_path, mon
     on a separate test file. Counted on the validation started afresh, the transient sits in its first block
     alone, and the spread of the mixed blocks took it for noise: the smaller model won the 10 % tie. The
     spread is now that of the continued runs, where the two do not differ: the difference is resolved."""
-    installed = registry.families()
-    monkeypatch.setattr(registry, "families", lambda: {**installed, "startup": SizedStartup})
-    spec_model.cache_clear()
     rng = np.random.default_rng(3)
     u, ut = rng.uniform(-1, 1, 3600), rng.uniform(-1, 1, 1080)  # 1080 validation samples: no cross-validation
-    write_csv(tmp_path / "train.csv", {"u": u, "y": 2 * u + 0.4 * rng.standard_normal(3600)})
-    write_csv(tmp_path / "test.csv", {"u": ut, "y": 2 * ut})
-    raw = _raw(families=["startup"], budget=1)
-    del raw["data"]["init_window"]
-    try:
-        model, _ = _fit(raw, tmp_path)
-    finally:
-        spec_model.cache_clear()
+    train = {"u": u, "y": 2 * u + 0.4 * rng.standard_normal(3600)}
+    model = _search_sized(SizedStartup, tmp_path, monkeypatch, train, {"u": ut, "y": 2 * ut})
     rec = model.search
     kicked = next(c for c in rec["candidates"] if c["params"].get("kick") == 0.5)
     plain = next(c for c in rec["candidates"] if not c["params"].get("kick"))
@@ -681,16 +689,13 @@ def test_on_noisy_data_a_start_up_transient_is_not_taken_for_noise(tmp_path, mon
     assert kicked["verdict"] == "validates worse (block by block)"
 
 
-class SizedShrink(Startup):
-    """:class:`Startup` offering the exact slope (10 parameters) and one shrunk by 8 % (2 parameters)."""
+class SizedShrink(SizedStartup):
+    """:class:`SizedStartup` offering the exact slope and one shrunk by 8 % (the smaller)."""
 
     starting = (
         Candidate("startup", {"shrink": 0.08}, "slope shrunk by 8 %, small", work=0.01),
         Candidate("startup", {}, "exact, large", work=0.01),
     )
-
-    def summary(self) -> dict[str, Any]:
-        return {"parameters": 2 if self.params.shrink else 10}
 
 
 def test_with_glitches_in_a_short_record_a_gain_made_in_every_fold_is_kept(tmp_path, monkeypatch):
@@ -698,22 +703,12 @@ def test_with_glitches_in_a_short_record_a_gain_made_in_every_fold_is_kept(tmp_p
     samples off by 6 stds): every candidate validates near a floor of about 15 %, and the shrunk slope's
     excess (a few % of that) sat inside the cautious 10 % tie, where the smaller model won (0.6 % test NMSE
     against 0 for the exact one). Compared fold by fold, its excess shows in every fold and is resolved."""
-    installed = registry.families()
-    monkeypatch.setattr(registry, "families", lambda: {**installed, "startup": SizedShrink})
-    spec_model.cache_clear()
     rng = np.random.default_rng(4)
     u, ut = rng.uniform(-1, 1, 3000), rng.uniform(-1, 1, 600)
     y = 2 * u + 0.01 * rng.standard_normal(3000)
     hit = rng.choice(3000, 15, replace=False)
     y[hit] += 6 * y.std() * rng.choice([-1.0, 1.0], 15)
-    write_csv(tmp_path / "train.csv", {"u": u, "y": y})
-    write_csv(tmp_path / "test.csv", {"u": ut, "y": 2 * ut})
-    raw = _raw(families=["startup"], budget=1)
-    del raw["data"]["init_window"]
-    try:
-        model, _ = _fit(raw, tmp_path)
-    finally:
-        spec_model.cache_clear()
+    model = _search_sized(SizedShrink, tmp_path, monkeypatch, {"u": u, "y": y}, {"u": ut, "y": 2 * ut})
     rec = model.search
     assert rec["mode"] == "folds"
     shrunk = next(c for c in rec["candidates"] if c["params"].get("shrink"))

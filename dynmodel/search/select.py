@@ -20,9 +20,10 @@ The **choice** (:func:`choose`), in order:
    that beats the linear reference by :data:`REFERENCE_MARGIN`. When the only reasons are the last, or a
    short validation that was cross-validated, a candidate stays out of the tie if it validates worse than
    the best by more than :data:`RESOLVED` standard errors of a paired comparison (:func:`paired_difference`):
-   block by block, or fold by fold when cross-validated. The validation resolves that difference. Not when
-   the test inputs leave the training range or recordings are left out in turn: validation cannot rank
-   extrapolation. The report says when the simpler one was preferred, and why.
+   block by block, or fold by fold when cross-validated. The validation resolves that difference. Not for
+   a short hold-out split (no folds to compare), nor when the test inputs leave the training range or
+   recordings are left out in turn: validation cannot rank extrapolation. The report says when the simpler
+   one was preferred, and why.
 """
 
 from __future__ import annotations
