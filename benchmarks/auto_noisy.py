@@ -1,6 +1,6 @@
 """family: auto on noisy measurements of generated systems, next to each family's default.
 
-    python benchmarks/auto_noisy.py                   # every case (about 4 min on 2 cores)
+    python benchmarks/auto_noisy.py                   # every case (about 5 min on 2 cores)
     python benchmarks/auto_noisy.py --only linear-snr3 --json noisy.json
     python benchmarks/auto_noisy.py --families narx esn annealed-rnn    # built-in families only
 
