@@ -140,7 +140,8 @@ def pooled(results: list[Any]) -> float:
 
 def moment_score(results: list[Any]) -> float | None:
     """The NMSE (%) of the squared errors summed in ``results``' moments over their pooled denominators
-    (:func:`pooled`), mean over outputs; one result: its own NMSE. None when a result has no moments."""
+    (:func:`pooled`), mean over outputs (one result: its NMSE from its own moments, where a fresh start may be
+    mixed into the errors). None when a result has no moments."""
     denominators = _denominators(results)
     if denominators is None:
         return None
@@ -323,10 +324,10 @@ def choose(
     # the validation can itself say whether it resolves a gain when its only doubts are its size (a short
     # cross-validation: compared fold by fold) or a gain over the linear reference too small to trust at
     # once; not when the models will extrapolate, nor across recordings at other operating points
-    pairable = True
+    pairable, group = True, 1
     if short_validation:
         out.cautious.append(short_validation)
-        pairable = fold_blocks > 1
+        pairable, group = fold_blocks > 1, fold_blocks
     if excursion > EXTRAPOLATION:
         out.cautious.append(f"the test inputs leave the training range by {100 * excursion:.0f} % of its width")
         pairable = False
@@ -337,7 +338,6 @@ def choose(
             f"{100 * (1 - REFERENCE_MARGIN):.0f} %"
         )
     paired = bool(out.cautious) and pairable
-    group = fold_blocks if short_validation else 1
     by = "fold by fold" if group > 1 else "block by block"
     tie = CAUTIOUS_TIE if out.cautious else TIE
     close = [k for k in eligible if summaries[k].score <= best * (1 + tie) or summaries[k].score == best]
