@@ -1077,6 +1077,8 @@ def test_a_short_cross_validation_resolves_a_gain_fold_by_fold_not_block_by_bloc
     by_block, by_fold = paired_difference(a, b), paired_difference(a, b, per_fold)
     assert by_block is not None and by_block[0] > 2 * by_block[1]
     assert by_fold is not None and by_fold[0] == pytest.approx(by_block[0]) and by_fold[0] < 2 * by_fold[1]
+    # 40 blocks are not whole groups of 7: no comparison at all, rather than a block-wise one
+    assert paired_difference(a, b, 7) is None
     assert pair(everywhere, fold_blocks=per_fold, excursion=0.3).key == "small"
     assert pair(everywhere).key == "small"  # a short hold-out validation (no folds to compare): the 10 % tie
 

@@ -179,7 +179,8 @@ def paired_difference(a: Summary, b: Summary, group: int = 1) -> tuple[float, fl
     the mixed blocks took for noise). ``group``: consecutive blocks summed into one unit before the spread is
     taken (a fold's blocks in a blocked cross-validation: the blocks of one short fold are correlated, so
     their spread would understate the noise; folds apart from each other much less so). None unless both
-    were validated on the same views, in as many blocks, and at least three units that both scored."""
+    were validated on the same views, in as many blocks (a whole number of groups), and at least three units
+    that both scored."""
     if a.blocks is None or b.blocks is None or a.blocks_on != b.blocks_on or a.blocks.shape != b.blocks.shape:
         return None
     d = a.blocks - b.blocks
@@ -187,7 +188,9 @@ def paired_difference(a: Summary, b: Summary, group: int = 1) -> tuple[float, fl
     spread = d
     if a.continued is not None and b.continued is not None and a.continued.shape == d.shape == b.continued.shape:
         spread = a.continued - b.continued
-    if group > 1 and d.size % group == 0:
+    if group > 1:
+        if d.size % group:
+            return None  # not whole folds: compared block by block, a short fold's blocks would pass for independent
         d = np.where(both, d, 0.0).reshape(-1, group).sum(axis=1)
         spread = np.where(both, spread, 0.0).reshape(-1, group).sum(axis=1)
         both = both.reshape(-1, group).any(axis=1)
