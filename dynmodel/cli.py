@@ -193,6 +193,9 @@ def fit(
         )
     for note in ds.excursion_notes():
         out.print(f"note: {note}", markup=False, soft_wrap=True)
+    for split, note in ds.repeat_notes().items():
+        if split != "validation" or model.search is None:  # the search's notes say it for its validation
+            out.print(f"note: {note}", markup=False, soft_wrap=True)
     out.print(f"model written to {result.path}")
     if result.plot_path is not None:
         out.print(f"plot written to {result.plot_path}")

@@ -215,6 +215,14 @@ class Dataset:
             for e in self.input_excursions()
         ]
 
+    def repeat_notes(self) -> dict[str, str]:
+        """Per validation or test split whose input repeats the training input (a periodic excitation split
+        period by period, :mod:`.repeats`): a sentence for a user."""
+        from .repeats import repeat_note, repeats_training
+
+        found = {split: repeats_training(self, split) for split in self.splits()[1:]}
+        return {split: repeat_note(f) for split, f in found.items() if f is not None}
+
     def concat_outputs(self, split: str) -> np.ndarray:
         """Outputs of ``split`` concatenated (the pieces of :meth:`concat_inputs`)."""
         pieces = [self.recordings[rec].y[start:stop] for rec, start, stop in self.ranges.get(split, [])]

@@ -35,6 +35,7 @@ import numpy as np
 from .. import registry
 from ..batch import run_specs
 from ..data.dataset import Dataset
+from ..data.repeats import repeat_note
 from ..errors import DynmodelError
 from ..extensions import merge
 from ..family import Progress, no_progress
@@ -43,7 +44,7 @@ from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
-from .views import Layout, possible_folds, possible_recording_folds, validated_folds, view
+from .views import Layout, possible_folds, possible_recording_folds, repeated_validation, validated_folds, view
 from .worker import BLOCKS, Task, TaskResult, fresh_weight, run_task
 
 if TYPE_CHECKING:
@@ -56,6 +57,8 @@ CV_BELOW = 1000
 #: ... and the training and validation samples together are at most this many
 CV_MAX = 20000
 FOLDS = 5
+#: why the tie is widened when the validation input repeats the training input (docs/auto.md)
+REPEATED = "the validation input repeats the training input (a periodic excitation)"
 #: configurations always carried from the screening to the final layout ...
 SURVIVORS = 3
 #: ... and, as far as the budget's share allows, every other one screened within this factor of the best (the
@@ -243,6 +246,11 @@ class Search:
             self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used]
         else:
             self.final_layouts = [Layout("full")]
+        # a periodic excitation split period by period: the validation shows the models their training input
+        # again and favours the larger ones (checked on a single hold-out: the spec's split or the tail)
+        self.repeated = repeated_validation(ds, self.final_layouts[0]) if self.mode in ("holdout", "tail") else None
+        if self.repeated is not None:
+            self.notes.append(repeat_note(self.repeated) + "; so simpler candidates are preferred")
         fresh = fresh_weight(ds, self.final_layouts[0])
         if fresh is not None:
             self.notes.append(
@@ -690,6 +698,7 @@ class Search:
             reference=self._reference_score(),
             uses_inputs=self.ctx.n_inputs > 0,
             fold_blocks=BLOCKS if self.mode == "folds" else 0,
+            repeated_input=REPEATED if self.repeated is not None else None,
         )
         for k, e in self.entries.items():
             if k in choice.verdicts:
@@ -914,6 +923,11 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
             "the test data start recordings of their own: each validation run is also started afresh, as a test "
             f"recording is, and that start counts with weight {fresh[1]:.2g} (validation over test length)"
         )
+    if mode in ("holdout", "tail"):
+        held = Layout("fold", fold=k - 1, folds=k) if mode == "tail" else Layout("full")
+        repeated = repeated_validation(ds, held)
+        if repeated is not None:
+            lines.append(repeat_note(repeated) + "; so simpler candidates are preferred")
     if ctx.excursion > 0.05:
         lines.append(
             f"the test inputs leave the training range by {100 * ctx.excursion:.0f} % of its width: simpler, "

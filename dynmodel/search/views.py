@@ -278,3 +278,19 @@ def view(ds: Dataset, layout: Layout, fresh: tuple[int, bool] | None = None) -> 
     elif fresh is not None:
         ds = _own_validation_runs(ds)
     return screen(ds, layout.samples or None)
+
+
+def repeated_validation(ds: Dataset, layout: Layout) -> dict[str, Any] | None:
+    """The finding of :func:`~dynmodel.data.repeats.repeats_training` when the validation input of ``layout``
+    repeats its training input (a periodic excitation split period by period) while a test input does not, or
+    there is no test set (the model will meet new inputs); None otherwise. A test set that repeats the training
+    input too is scored on that input again, and the validation then ranks candidates as it does."""
+    from ..data.repeats import repeats_training
+
+    found = repeats_training(view(ds, layout), "validation")
+    if found is None:
+        return None
+    tests = [s for s in ds.ranges if s not in FIT_SPLITS and ds.ranges[s]]
+    if tests and all(repeats_training(ds, s) is not None for s in tests):
+        return None
+    return found

@@ -1,0 +1,110 @@
+"""A validation or test input that repeats the training input (a periodic excitation split period by
+period): found, named, and the search made cautious by it (dynmodel/data/repeats.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dynmodel.data.dataset import Dataset, Recording
+from dynmodel.data.repeats import MISMATCH, best_match, repeats_training
+from dynmodel.search.select import Summary, choose
+from dynmodel.search.views import Layout, repeated_validation
+
+PERIOD = 700
+
+
+def _periodic(periods: int, noise: float = 0.0, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    one = rng.standard_normal(PERIOD)
+    return np.tile(one, periods) + noise * rng.standard_normal(periods * PERIOD)
+
+
+def _dataset(u: np.ndarray, splits: dict[str, tuple[int, int]], test: np.ndarray | None = None) -> Dataset:
+    recordings = [Recording("r.csv", u[:, None], np.zeros((len(u), 1)))]
+    ranges = {k: [(0, a, b)] for k, (a, b) in splits.items()}
+    if test is not None:
+        recordings.append(Recording("t.csv", test[:, None], np.zeros((len(test), 1))))
+        ranges["test"] = [(1, 0, len(test))]
+    return Dataset(recordings, ranges, 0, ["u"], ["y"], 1.0)
+
+
+def test_best_match_finds_a_shifted_copy_and_nothing_in_an_unrelated_signal():
+    rng = np.random.default_rng(1)
+    x = rng.standard_normal((3000, 2))
+    shift, mismatch = best_match(x, x[1234:1734])
+    assert shift == 1234 and mismatch < 1e-6  # FFT rounding
+    _, unrelated = best_match(x, rng.standard_normal((500, 2)))
+    assert unrelated > 1.0  # an independent signal: the mismatch of the best shift is near sqrt(2)
+    assert best_match(x, np.full((500, 2), 0.3))[1] == np.inf  # a held input repeats nothing
+
+
+def test_a_periodic_record_split_period_by_period_repeats_and_a_new_realization_does_not():
+    u = _periodic(6, noise=0.01)  # measured: 1 % noise on the input
+    ds = _dataset(u, {"train": (0, 5 * PERIOD), "validation": (5 * PERIOD, 6 * PERIOD)}, test=_periodic(2, seed=9))
+    found = repeats_training(ds, "validation")
+    assert found is not None and found["period"] == PERIOD and 0.005 < found["mismatch"] < MISMATCH
+    assert repeats_training(ds, "test") is None
+    notes = ds.repeat_notes()
+    assert list(notes) == ["validation"] and f"{PERIOD} samples back" in notes["validation"]
+    # the search is cautious: the validation repeats, the test input is new
+    assert repeated_validation(ds, Layout("full")) == found
+    # a validation that is not a repeat: a random input throughout
+    random = np.random.default_rng(3).standard_normal(6 * PERIOD)
+    assert repeats_training(_dataset(random, {"train": (0, 3500), "validation": (3500, 4200)}), "validation") is None
+    # noise beyond the tolerance (20 % of the input's spread): not a repeat
+    noisy = _dataset(_periodic(6, noise=0.2), {"train": (0, 5 * PERIOD), "validation": (5 * PERIOD, 6 * PERIOD)})
+    assert repeats_training(noisy, "validation") is None
+
+
+def test_a_test_set_that_repeats_the_training_input_too_leaves_the_validation_as_representative():
+    u = _periodic(8)
+    ds = _dataset(
+        u, {"train": (0, 5 * PERIOD), "validation": (5 * PERIOD, 6 * PERIOD), "test": (6 * PERIOD, 8 * PERIOD)}
+    )
+    assert repeats_training(ds, "validation") is not None and repeats_training(ds, "test") is not None
+    assert repeated_validation(ds, Layout("full")) is None
+
+
+def _s(score: float, size: float) -> Summary:
+    return Summary(score, True, 0.5, size, {0: score}, 0)
+
+
+def test_a_repeated_validation_input_widens_the_tie_to_the_simpler_candidate():
+    labels = {"big": "big", "small": "small"}
+    summaries = {"big": _s(1.0, 70), "small": _s(1.07, 30)}
+    assert choose(summaries, labels).key == "big"
+    cautious = choose(summaries, labels, repeated_input="the validation input repeats the training input")
+    assert cautious.key == "small" and cautious.cautious == ["the validation input repeats the training input"]
+    assert "chose the simpler small" in cautious.notes[0]
+    # beyond the 10 % tie the better one stays
+    assert choose({"big": _s(1.0, 70), "small": _s(1.2, 30)}, labels, repeated_input="repeats").key == "big"
+
+
+@pytest.mark.parametrize("periods", [3, 6])
+def test_the_period_reported_is_the_nearest_copy(periods):
+    u = _periodic(periods)
+    n = periods * PERIOD
+    found = repeats_training(_dataset(u, {"train": (0, n - PERIOD), "validation": (n - PERIOD, n)}), "validation")
+    assert found is not None and found["period"] == PERIOD
+
+
+def test_fit_notes_a_validation_split_that_repeats_the_training_input(tmp_path, cli):
+    """`dynmodel fit` with any family says when the validation input is the training input again."""
+    import yaml
+    from conftest import write_csv
+    from scipy.signal import lfilter
+
+    u = _periodic(6)
+    y = lfilter([0.3], [1.0, -0.7], u) + 0.01 * np.random.default_rng(2).standard_normal(len(u))
+    write_csv(tmp_path / "d.csv", {"u": u, "y": y})
+    spec = {
+        "name": "periodic",
+        "data": {"path": "d.csv", "input": ["u"], "output": ["y"], "split": {"train": 5 / 6, "validation": 1 / 6}},
+        "model": {"family": "narx", "params": {"degree": 1, "lags": {"u": [0, 1], "y": [1]}}},
+    }
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(spec))
+    result = cli("fit", tmp_path / "s.yaml", "--out", tmp_path / "m.h5")
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    assert f"the validation input repeats the training input (exactly, {PERIOD} samples back" in text
