@@ -89,6 +89,87 @@ def test_the_period_reported_is_the_nearest_copy(periods):
     assert found is not None and found["period"] == PERIOD
 
 
+def test_phase_fold_holds_one_fifth_of_the_period_out_of_every_period():
+    from dynmodel.search.views import phase_fold, view
+
+    u = _periodic(6)
+    ds = _dataset(u, {"train": (0, 5 * PERIOD), "validation": (5 * PERIOD, 6 * PERIOD)}, test=_periodic(2, seed=9))
+    width = PERIOD // 5
+    last = phase_fold(ds, 4, 5, PERIOD)  # the last fifth
+    assert last.ranges["validation"] == [(0, 6 * PERIOD - width, 6 * PERIOD)]
+    assert last.ranges["train"] == [(0, j * PERIOD, (j + 1) * PERIOD - width) for j in range(6)]
+    middle = phase_fold(ds, 2, 5, PERIOD)  # [2/5, 3/5) of every period held out
+    lo, hi = 2 * width, 3 * width
+    assert middle.ranges["validation"] == [(0, 5 * PERIOD + lo, 5 * PERIOD + hi)]
+    expected = (
+        [(0, 0, lo)]
+        + [(0, j * PERIOD + hi, (j + 1) * PERIOD + lo) for j in range(5)]
+        + [(0, 5 * PERIOD + hi, 6 * PERIOD)]
+    )
+    assert middle.ranges["train"] == expected
+    assert "test" not in view(ds, Layout("fold", fold=2, folds=5, period=PERIOD)).ranges  # never fitted on
+    for i in range(5):  # every phase window's input occurs in no training range: a new input to every model
+        assert repeats_training(phase_fold(ds, i, 5, PERIOD), "validation") is None
+
+
+def _wiener_hammerstein(u: np.ndarray) -> np.ndarray:
+    from scipy.signal import lfilter
+
+    v = lfilter([0.3], [1.0, -0.7], u)
+    return lfilter([0.2], [1.0, -0.8], np.tanh(1.5 * v))
+
+
+def test_a_periodic_record_is_ranked_on_phases_held_out_and_the_choice_refitted_on_all(tmp_path):
+    """Six periods of one multisine (the last the validation split), tested on another realization: the search
+    ranks its candidates on each fifth of the period held out of every period in turn, and refits the choice
+    on the whole training split."""
+    from conftest import write_csv
+
+    from dynmodel import engine
+    from dynmodel.data import load_dataset
+    from dynmodel.search import search_options
+    from dynmodel.spec import validate_spec
+
+    period = 1000
+    rng = np.random.default_rng(5)
+
+    def multisine() -> np.ndarray:
+        spectrum = np.zeros(period // 2 + 1, complex)
+        spectrum[5:150] = np.exp(2j * np.pi * rng.random(145))
+        one = np.fft.irfft(spectrum, period)
+        return np.tile(one / one.std(), 8)
+
+    u, ut = multisine(), multisine()
+    y, yt = _wiener_hammerstein(u)[2 * period :], _wiener_hammerstein(ut)[2 * period :]
+    y = y + 0.01 * y.std() * rng.standard_normal(len(y))
+    write_csv(tmp_path / "train.csv", {"u": u[2 * period :], "y": y})
+    write_csv(tmp_path / "test.csv", {"u": ut[2 * period :], "y": yt})
+    raw = {
+        "name": "periodic",
+        "data": {
+            "path": "train.csv",
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 5 / 6, "validation": 1 / 6},
+            "test": {"path": "test.csv"},
+        },
+        "model": {"family": "auto", "params": {"families": ["narx"], "budget": 4}},
+        "seed": 0,
+    }
+    spec = validate_spec(raw, "<test>", tmp_path)
+    ds = load_dataset(spec)
+    with search_options(workers=1):
+        model, _ = engine.fit_dataset(spec, ds)
+    rec = model.search
+    assert rec["mode"] == "phase" and rec["folds"] == 5
+    assert rec["layouts"]["final"] == [Layout("fold", fold=i, folds=5, period=period).to_json() for i in range(5)]
+    assert any("a periodic excitation of 1000 samples" in n for n in rec["notes"])
+    assert model.metrics["train"]["samples"] == ds.n_scored(
+        "train", model.warmup
+    )  # refitted on the whole training split
+    assert model.metrics["test"]["nmse"] < 1.0
+
+
 def test_fit_notes_a_validation_split_that_repeats_the_training_input(tmp_path, cli):
     """`dynmodel fit` with any family says when the validation input is the training input again."""
     import yaml

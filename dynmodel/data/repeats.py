@@ -4,8 +4,8 @@ period by period) shows a model the input it was fitted on again. Its error then
 fits that input, not how it does on a new one, and it ranks larger models too well: on the Bouc-Wen record
 (five periods of one multisine, the last one the validation split) a degree-3 NARX with lags up to 5
 validates at 0.059 % NMSE against 0.078 % for lags up to 4, and scores 0.150 % against 0.102 % on a new
-multisine realization; with a fifth of the period held out of every period, both validate as they test
-(0.17 and 0.12 %).
+multisine realization; with the first fifth of the period held out of every period, both validate as they
+test (0.17 and 0.12 %).
 
 The check cuts each range of the split into at most :data:`CHUNKS` chunks of :data:`CHUNK` samples and looks
 for each, with an FFT cross-correlation, at every shift of every training range: a chunk repeats when some

@@ -25,6 +25,7 @@ def headline(record: dict[str, Any]) -> str:
         "folds": f"cross-validated in {record.get('folds')} blocks{first}",
         "recordings": f"each of {record.get('folds')} recordings left out in turn",
         "tail": f"the last 1/{record.get('folds')} of the training held out",
+        "phase": f"each 1/{record.get('folds')} of the excitation's period held out in turn",
     }.get(str(record.get("mode")), "validation split")
     budget = record.get("budget") or {}
     text = (

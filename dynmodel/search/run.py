@@ -44,7 +44,16 @@ from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
 from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
-from .views import Layout, possible_folds, possible_recording_folds, repeated_validation, validated_folds, view
+from .views import (
+    MIN_BLOCK,
+    Layout,
+    possible_folds,
+    possible_recording_folds,
+    repeated_validation,
+    spans,
+    validated_folds,
+    view,
+)
 from .worker import BLOCKS, Task, TaskResult, fresh_weight, run_task
 
 if TYPE_CHECKING:
@@ -173,7 +182,10 @@ def context(
     validation is short. 'recordings': three or more
     recordings with fitting data, each left out in turn; 'folds': blocked cross-validation of short data;
     'tail': long data without a validation split, ranked on the last of :data:`FOLDS` blocks held out (the
-    context's sample counts are that fold's); 'holdout': the spec's own validation split."""
+    context's sample counts are that fold's); 'phase': a validation split that repeats the training input of
+    a periodic excitation, on short data: each of :data:`FOLDS` phases of the period held out of every period
+    in turn (:func:`.views.phase_fold`, fold layouts with a ``period``); 'holdout': the spec's own validation
+    split."""
     n_train, n_val = ds.n_scored("train"), ds.n_scored("validation") if ds.ranges.get("validation") else 0
     from ..protocol import allowed_warmup
 
@@ -189,6 +201,11 @@ def context(
     if mode == "holdout" and n_val == 0 and folds >= 2:
         mode = "tail"  # ranked on the last block held out, never on the training error
         n_train, n_val = n_train - n_train // folds, n_train // folds
+    period = _phase_period(ds) if mode == "holdout" and n_train + n_val <= CV_MAX else None
+    if period is not None:  # a periodic excitation: each phase of the period held out of every period in turn
+        mode, small, folds = "phase", True, FOLDS
+        short = phase_note(period, folds)
+        n_train, n_val = n_train + n_val - (n_train + n_val) // folds, (n_train + n_val) // folds
     folds = {"recordings": left_out, "holdout": 0}.get(mode, folds)
     data = dict(spec.resolved()["data"])
     ctx = SearchContext(
@@ -206,6 +223,20 @@ def context(
         budget=float(params.budget),
     )
     return ctx, mode, folds, short
+
+
+def _phase_period(ds: Dataset) -> int | None:
+    """The period of the excitation when the spec's validation split repeats the training input of its own
+    recording (:func:`repeated_validation`: and a test input does not, or there is no test set), the recording
+    holds at least two periods before the validation split ends and a phase window (1 / FOLDS of the period)
+    keeps MIN_BLOCK scored samples; None otherwise."""
+    found = repeated_validation(ds, Layout("full"))
+    period = int((found or {}).get("period") or 0)
+    if not period or period // FOLDS - ds.transient < MIN_BLOCK:
+        return None
+    r, _, b = ds.ranges["validation"][-1]
+    first = min(a for rr, a, _ in spans(ds) if rr == r)
+    return period if b - first >= 2 * period else None
 
 
 class Search:
@@ -237,13 +268,16 @@ class Search:
         self.limited = False  # stopped at the safety limit (not by the user)
         self.started = time.monotonic()
         folds = self.folds
+        if self.mode == "phase":  # a periodic excitation: each phase of the period held out in turn
+            self.notes.append(str(self.short))
         if self.mode == "tail":  # the last block held out
             self.notes.append(tail_note(folds))
             self.final_layouts = [Layout("fold", fold=folds - 1, folds=folds)]
         elif folds:
             kind = "recording" if self.mode == "recordings" else "fold"
             used = validated_folds(ds, folds) if self.mode == "folds" else list(range(folds))
-            self.final_layouts = [Layout(kind, fold=i, folds=folds) for i in used]
+            period = (_phase_period(ds) or 0) if self.mode == "phase" else 0
+            self.final_layouts = [Layout(kind, fold=i, folds=folds, period=period) for i in used]
         else:
             self.final_layouts = [Layout("full")]
         # a periodic excitation split period by period: the validation shows the models their training input
@@ -261,7 +295,7 @@ class Search:
         # successive halving: screened on the last SCREEN_SAMPLES of a longer training (blocked folds are short
         # data, screened as they are validated)
         self.screen_layouts = (
-            self.final_layouts if self.mode == "folds" else [self._screened(x) for x in self.final_layouts]
+            self.final_layouts if self.mode in ("folds", "phase") else [self._screened(x) for x in self.final_layouts]
         )
         self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
         self.base = self._base_spec()
@@ -683,6 +717,8 @@ class Search:
         short = None
         if self.mode == "folds":
             short = f"{self.short}: the candidates were cross-validated in {self.folds} blocks"
+        elif self.mode == "phase":
+            short = self.short
         elif self.mode == "recordings":
             short = (
                 f"the {self.folds} training recordings were each left out in turn (a validation split taken from "
@@ -697,7 +733,7 @@ class Search:
             excursion=self.ctx.excursion,
             reference=self._reference_score(),
             uses_inputs=self.ctx.n_inputs > 0,
-            fold_blocks=BLOCKS if self.mode == "folds" else 0,
+            fold_blocks=BLOCKS if self.mode in ("folds", "phase") else 0,
             repeated_input=REPEATED if self.repeated is not None else None,
         )
         for k, e in self.entries.items():
@@ -772,7 +808,7 @@ class Search:
 
         pick = min(fits, key=lambda r: (not r.checks.get("ok", False), -trained(r), r.key))
         layout = Layout(**pick.layout)
-        if past_limit and (level == "screen" or self.mode in ("recordings", "folds")):
+        if past_limit and (level == "screen" or self.mode in ("recordings", "folds", "phase")):
             how = (
                 f"as screened ({layout.label}, its screening variant)"
                 if level == "screen" and not self._screen_is_final(e.cand)
@@ -875,6 +911,17 @@ class Search:
         }
 
 
+def phase_note(period: int, folds: int) -> str:
+    """Why and how a search whose validation split repeats the training input ranks its candidates (mode
+    'phase', :func:`.views.phase_fold`)."""
+    return (
+        f"the validation input repeats the training input (a periodic excitation of {period} samples), so it "
+        f"cannot tell how a model does on a new input: each 1/{folds} of the period was held out of every "
+        "period's training in turn and validated in the last period, and the choice refitted on the whole "
+        "training split"
+    )
+
+
 def tail_note(folds: int, planned: bool = False) -> str:
     """Why and how a search without a validation split ranks its candidates (mode 'tail')."""
     are, is_ = ("are", "is") if planned else ("were", "was")
@@ -909,6 +956,8 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         )
     elif mode == "tail":
         lines.append(f"ranking: {tail_note(k, planned=True)}")
+    elif mode == "phase":
+        lines.append(f"ranking: {short}")
     else:
         n = min(SCREEN_SAMPLES, ctx.n_train)
         lines.append(
@@ -917,7 +966,9 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         )
     if ctx.max_warmup is not None:
         lines.append(f"the protocol lets a run start from at most {ctx.max_warmup} measured outputs")
-    fresh = fresh_weight(ds, Layout("fold", fold=k - 1, folds=k) if mode in ("folds", "tail") else Layout("full"))
+    period = (_phase_period(ds) or 0) if mode == "phase" else 0
+    held_out = Layout("fold", fold=k - 1, folds=k, period=period)
+    fresh = fresh_weight(ds, held_out if mode in ("folds", "tail", "phase") else Layout("full"))
     if fresh is not None:
         lines.append(
             "the test data start recordings of their own: each validation run is also started afresh, as a test "

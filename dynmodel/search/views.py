@@ -56,12 +56,13 @@ class Layout:
     samples: int = 0  # screen, and a screened fold or recording left out: training samples kept; 0 all
     fold: int = 0
     folds: int = 0
+    period: int = 0  # fold: the period of a periodic excitation whose phases are held out (0: blocks in time)
 
     @property
     def label(self) -> str:
         name = {
             "screen": "screen",
-            "fold": f"fold {self.fold + 1}/{self.folds}",
+            "fold": f"{'phase' if self.period else 'fold'} {self.fold + 1}/{self.folds}",
             "recording": f"recording {self.fold + 1}/{self.folds} left out",
         }.get(self.kind, "full")
         return f"{name} ({self.samples} training samples)" if self.samples else name
@@ -271,7 +272,11 @@ def view(ds: Dataset, layout: Layout, fresh: tuple[int, bool] | None = None) -> 
             ds = dataclasses.replace(ds, windows={**_windows(ds), "validation": window})
         if whole:
             ds = dataclasses.replace(ds, score_all={*ds.score_all, "validation"})
-    if layout.kind == "fold":
+    if layout.kind == "fold" and layout.period:
+        ds = phase_fold(ds, layout.fold, layout.folds, layout.period)
+        if fresh is not None:
+            ds = _own_validation_runs(ds)
+    elif layout.kind == "fold":
         ds = fold(ds, layout.fold, layout.folds, apart=fresh is not None)
     elif layout.kind == "recording":
         ds = recording_fold(ds, layout.fold)
@@ -294,3 +299,32 @@ def repeated_validation(ds: Dataset, layout: Layout) -> dict[str, Any] | None:
     if tests and all(repeats_training(ds, s) is not None for s in tests):
         return None
     return found
+
+
+def phase_fold(ds: Dataset, i: int, k: int, period: int) -> Dataset:
+    """Fold ``i`` of ``k`` of a periodic excitation whose validation split repeats the training input: the
+    ``i``-th of ``k`` consecutive phase windows of the period, counted back from the end of the last validation
+    range, is held out of every period of that recording, and its copy in the last period validates. So the
+    validation shows every model a stretch of the input that no training sample holds, which the spec's
+    validation split (another period) does not. The validation window continues the free run of the training
+    samples before it; other recordings train whole."""
+    r, _, b = ds.ranges["validation"][-1]
+    lo_phase, hi_phase = (i * period) // k, ((i + 1) * period) // k
+    start = b - period  # the last period
+    train: list[tuple[int, int, int]] = []
+    for rr, a0, b0 in spans(ds):
+        if rr != r:
+            train.append((rr, a0, b0))
+            continue
+        pos = a0
+        shift = -((start - a0) // period) * period - period  # the copy of the window that starts before a0
+        while start + shift + lo_phase < b0:
+            lo, hi = max(start + shift + lo_phase, a0), min(start + shift + hi_phase, b0)
+            if lo < hi:
+                if pos < lo:
+                    train.append((rr, pos, lo))
+                pos = max(pos, hi)
+            shift += period
+        if pos < b0:
+            train.append((rr, pos, b0))
+    return _compact(ds, {"train": train, "validation": [(r, start + lo_phase, start + hi_phase)]})
