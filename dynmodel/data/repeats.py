@@ -104,7 +104,8 @@ def repeat_note(found: dict[str, Any]) -> str:
     period = f", {found['period']} samples back" if found.get("period") else ""
     within = "exactly" if found["mismatch"] < 1e-6 else f"within {100 * found['mismatch']:.2g} % RMS"
     return (
-        f"the {found['split']} input repeats the training input ({within}{period}, as the periods of a periodic excitation do): its error measures how a model fits that input "
-        "again, not how it does on a new one, and favours larger models; a recording with another realization of the "
-        "excitation (a multisine with other phases) measures that"
+        f"the {found['split']} input repeats the training input ({within}{period}, as the periods of a periodic "
+        "excitation do): its error measures how a model fits that input again, not how it does on a new one, and "
+        "favours larger models; a recording with another realization of the excitation (a multisine with other "
+        "phases) measures that"
     )

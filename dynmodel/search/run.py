@@ -35,7 +35,7 @@ import numpy as np
 from .. import registry
 from ..batch import run_specs
 from ..data.dataset import Dataset
-from ..data.repeats import repeat_note
+from ..data.repeats import repeat_note, repeats_training
 from ..errors import DynmodelError
 from ..extensions import merge
 from ..family import Progress, no_progress
@@ -47,6 +47,7 @@ from .space import Candidate, Found, SearchContext, candidates_of, estimated_wor
 from .views import (
     MIN_BLOCK,
     Layout,
+    phase_fold,
     possible_folds,
     possible_recording_folds,
     repeated_validation,
@@ -228,15 +229,19 @@ def context(
 def _phase_period(ds: Dataset) -> int | None:
     """The period of the excitation when the spec's validation split repeats the training input of its own
     recording (:func:`repeated_validation`: and a test input does not, or there is no test set), the recording
-    holds at least two periods before the validation split ends and a phase window (1 / FOLDS of the period)
-    keeps MIN_BLOCK scored samples; None otherwise."""
+    holds at least two periods before the validation split ends, a phase window (1 / FOLDS of the period)
+    keeps MIN_BLOCK scored samples and, held out, repeats no training input; None otherwise."""
     found = repeated_validation(ds, Layout("full"))
     period = int((found or {}).get("period") or 0)
     if not period or period // FOLDS - ds.transient < MIN_BLOCK:
         return None
     r, _, b = ds.ranges["validation"][-1]
     first = min(a for rr, a, _ in spans(ds) if rr == r)
-    return period if b - first >= 2 * period else None
+    if b - first < 2 * period:
+        return None
+    # the phase held out must be new to the training (a match found several periods back, or training ranges
+    # that break the period, could leave a copy of it in): else the caution of a repeated validation only
+    return period if repeats_training(phase_fold(ds, 0, FOLDS, period), "validation") is None else None
 
 
 class Search:
