@@ -26,16 +26,12 @@ nothing. The data are generated from fixed seeds, so the figures are the same on
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from auto_small_data import fit_timed, print_table
+from auto_small_data import fit_files, run_generated
 from scipy import signal
 
 Series = dict[str, np.ndarray]
@@ -107,64 +103,20 @@ def _write(path: Path, series: Series) -> None:
 
 
 def run_case(name: str, folder: Path, args) -> dict[str, Any]:
-    from dynmodel.registry import families
-
     train, test = CASES[name]()
     _write(folder / f"{name}-train.csv", train)
     _write(folder / f"{name}-test.csv", test)
-    base = {
-        "name": name,
-        "data": {
-            "path": str(folder / f"{name}-train.csv"),
-            "input": ["u"],
-            "output": ["y"],
-            "split": {"train": 0.8, "validation": 0.2},
-            "test": {"path": str(folder / f"{name}-test.csv")},
-        },
-        "seed": 0,
-    }
-    params: dict[str, Any] = {}
-    if args.budget is not None:
-        params["budget"] = args.budget
-    if args.families:
-        params["families"] = args.families
-    auto: dict[str, Any] = {"family": "auto", "params": params}
-    model, seconds = fit_timed({**base, "model": auto}, args.workers)
-    row: dict[str, Any] = {
-        "case": name,
-        "auto": model.metrics["test"]["nmse"],
-        "auto_validation": model.metrics["validation"]["nmse"],
-        "seconds": seconds,
-        "chosen": (model.search or {}).get("winner_summary") or model.family.name,
-        "notes": (model.search or {}).get("notes", []),
-        "defaults": {},
-    }
-    installed = set(families())
-    for family in DEFAULTS:
-        if family in installed and not args.no_defaults:
-            fitted, _ = fit_timed({**base, "model": {"family": family}}, 1)
-            row["defaults"][family] = fitted.metrics["test"]["nmse"]
-    return row
+    return fit_files(name, folder, args, {"train": 0.8, "validation": 0.2}, list(DEFAULTS))
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--only", nargs="*", choices=list(CASES), help="cases (default: all)")
-    ap.add_argument("--budget", type=float, help="search budget in seconds (default: auto's own, 300)")
-    ap.add_argument("--workers", type=int, help="parallel fits of the search (default: one per core)")
-    ap.add_argument("--families", nargs="*", help="families auto searches (default: every installed one)")
-    ap.add_argument("--no-defaults", action="store_true", help="run auto only")
-    ap.add_argument("--json", type=Path, help="write every figure as JSON")
-    args = ap.parse_args()
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    results = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for name in args.only or list(CASES):
-            print(f"... {name}", flush=True)
-            results.append(run_case(name, Path(tmp), args))
-            if args.json:
-                args.json.write_text(json.dumps(results, indent=1, default=str))
-    print_table(results, list(DEFAULTS), "test NMSE % on the noise-free continuation (validation at the noise floor)")
+    run_generated(
+        __doc__,
+        list(CASES),
+        run_case,
+        list(DEFAULTS),
+        "test NMSE % on the noise-free continuation (validation at the noise floor)",
+    )
 
 
 if __name__ == "__main__":

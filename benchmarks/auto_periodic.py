@@ -25,15 +25,11 @@ the model auto chose and its wall time. Asserts nothing; the data come from fixe
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from auto_small_data import fit_timed, print_table
+from auto_small_data import fit_files, run_generated
 
 PERIOD = 2000
 PERIODS = 6
@@ -112,52 +108,13 @@ def run_case(name: str, folder: Path, args) -> dict[str, Any]:
     u, y, ut, yt = generate(name)
     _write(folder / f"{name}-train.csv", u, y)
     _write(folder / f"{name}-test.csv", ut, yt)
-    base = {
-        "name": name,
-        "data": {
-            "path": str(folder / f"{name}-train.csv"),
-            "input": ["u"],
-            "output": ["y"],
-            "split": {"train": 5 / 6, "validation": 1 / 6},
-            "test": {"path": str(folder / f"{name}-test.csv")},
-        },
-        "seed": 0,
-    }
-    params: dict[str, Any] = {} if args.budget is None else {"budget": args.budget}
-    model, seconds = fit_timed({**base, "model": {"family": "auto", "params": params}}, args.workers)
-    row: dict[str, Any] = {
-        "case": name,
-        "auto": model.metrics["test"]["nmse"],
-        "auto_validation": model.metrics["validation"]["nmse"],
-        "seconds": seconds,
-        "chosen": (model.search or {}).get("winner_summary") or model.family.name,
-        "mode": (model.search or {}).get("mode"),
-        "defaults": {},
-    }
-    if not args.no_defaults:
-        for family in DEFAULTS:
-            fitted, _ = fit_timed({**base, "model": {"family": family}}, 1)
-            row["defaults"][family] = fitted.metrics["test"]["nmse"]
-    return row
+    return fit_files(name, folder, args, {"train": 5 / 6, "validation": 1 / 6}, list(DEFAULTS))
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--only", nargs="*", choices=list(CASES), help="cases (default: all)")
-    ap.add_argument("--budget", type=float, help="search budget in seconds (default: auto's own, 300)")
-    ap.add_argument("--workers", type=int, help="parallel fits of the search (default: one per core)")
-    ap.add_argument("--no-defaults", action="store_true", help="run auto only")
-    ap.add_argument("--json", type=Path, help="write every figure as JSON")
-    args = ap.parse_args()
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    results = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for name in args.only or list(CASES):
-            print(f"... {name}", flush=True)
-            results.append(run_case(name, Path(tmp), args))
-            if args.json:
-                args.json.write_text(json.dumps(results, indent=1, default=str))
-    print_table(results, [d for d in DEFAULTS if not args.no_defaults], "test NMSE % on a new multisine realization")
+    run_generated(
+        __doc__, list(CASES), run_case, list(DEFAULTS), "test NMSE % on a new multisine realization", families=False
+    )
 
 
 if __name__ == "__main__":

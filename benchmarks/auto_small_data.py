@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -201,6 +202,71 @@ def main() -> None:
         else "default split 60/20/20 of one recording"
     )
     print_table(results, list(DEFAULTS), f"test NMSE % ({layout})")
+
+
+def fit_files(name: str, folder: Path, args, split: dict[str, float], defaults: list[str]) -> dict[str, Any]:
+    """``family: auto`` (with the command line's budget and families) and each installed default of ``defaults``
+    fitted on ``folder/<name>-train.csv`` (columns u, y; ``split``) and tested on ``folder/<name>-test.csv``: one
+    row of figures for :func:`print_table`."""
+    from dynmodel.registry import families
+
+    base = {
+        "name": name,
+        "data": {
+            "path": str(folder / f"{name}-train.csv"),
+            "input": ["u"],
+            "output": ["y"],
+            "split": split,
+            "test": {"path": str(folder / f"{name}-test.csv")},
+        },
+        "seed": 0,
+    }
+    params: dict[str, Any] = {}
+    if args.budget is not None:
+        params["budget"] = args.budget
+    if getattr(args, "families", None):
+        params["families"] = args.families
+    model, seconds = fit_timed({**base, "model": {"family": "auto", "params": params}}, args.workers)
+    row: dict[str, Any] = {
+        "case": name,
+        "auto": model.metrics["test"]["nmse"],
+        "auto_validation": model.metrics["validation"]["nmse"],
+        "seconds": seconds,
+        "chosen": (model.search or {}).get("winner_summary") or model.family.name,
+        "mode": (model.search or {}).get("mode"),
+        "notes": (model.search or {}).get("notes", []),
+        "defaults": {},
+    }
+    installed = set(families())
+    for family in defaults:
+        if family in installed and not args.no_defaults:
+            fitted, _ = fit_timed({**base, "model": {"family": family}}, 1)
+            row["defaults"][family] = fitted.metrics["test"]["nmse"]
+    return row
+
+
+def run_generated(doc: str, cases: list[str], run_one, defaults: list[str], title: str, families: bool = True) -> None:
+    """The command line of the generated-case scripts (auto_noisy.py, auto_periodic.py): every case of
+    ``cases`` written to a temporary folder and run by ``run_one(name, folder, args)``, the figures kept as
+    JSON after each case and printed as one table."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    ap.add_argument("--only", nargs="*", choices=list(cases), help="cases (default: all)")
+    ap.add_argument("--budget", type=float, help="search budget in seconds (default: auto's own, 300)")
+    ap.add_argument("--workers", type=int, help="parallel fits of the search (default: one per core)")
+    if families:
+        ap.add_argument("--families", nargs="*", help="families auto searches (default: every installed one)")
+    ap.add_argument("--no-defaults", action="store_true", help="run auto only")
+    ap.add_argument("--json", type=Path, help="write every figure as JSON")
+    args = ap.parse_args()
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.only or list(cases):
+            print(f"... {name}", flush=True)
+            results.append(run_one(name, Path(tmp), args))
+            if args.json:
+                args.json.write_text(json.dumps(results, indent=1, default=str))
+    print_table(results, list(defaults), title)
 
 
 def print_table(results: list[dict[str, Any]], defaults: list[str], title: str) -> None:
