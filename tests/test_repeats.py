@@ -71,14 +71,25 @@ def _s(score: float, size: float) -> Summary:
 
 
 def test_a_repeated_validation_input_widens_the_tie_to_the_simpler_candidate():
+    from dynmodel.search.run import REPEATED, Ranking
+
     labels = {"big": "big", "small": "small"}
     summaries = {"big": _s(1.0, 70), "small": _s(1.07, 30)}
-    assert choose(summaries, labels).key == "big"
-    cautious = choose(summaries, labels, repeated_input="the validation input repeats the training input")
-    assert cautious.key == "small" and cautious.cautious == ["the validation input repeats the training input"]
+    found = {"split": "validation", "chunks": 8, "mismatch": 0.0, "period": PERIOD}
+    assert Ranking("holdout", 0, None).doubt() is None
+    assert choose(summaries, labels, short_validation=Ranking("holdout", 0, None).doubt()).key == "big"
+    doubt = Ranking("holdout", 0, None, repeated=found).doubt()
+    assert doubt == REPEATED
+    cautious = choose(summaries, labels, short_validation=doubt)
+    assert cautious.key == "small" and cautious.cautious == [REPEATED]
     assert "chose the simpler small" in cautious.notes[0]
     # beyond the 10 % tie the better one stays
-    assert choose({"big": _s(1.0, 70), "small": _s(1.2, 30)}, labels, repeated_input="repeats").key == "big"
+    assert choose({"big": _s(1.0, 70), "small": _s(1.2, 30)}, labels, short_validation=doubt).key == "big"
+    # with a short validation too, both reasons are given; the tail's missing validation split is not one
+    both = Ranking("holdout", 0, "the validation split has only 400 scored samples", repeated=found).doubt()
+    assert both == f"the validation split has only 400 scored samples; {REPEATED}"
+    assert Ranking("tail", 5, "there is no validation split", repeated=found).doubt() == REPEATED
+    assert Ranking("holdout", 0, None, repeated=found).repeat_caution().endswith("so simpler candidates are preferred")
 
 
 @pytest.mark.parametrize("periods", [3, 6])

@@ -37,18 +37,25 @@ MIN_CHUNK = 50
 MISMATCH = 0.05
 
 
-def best_match(x: np.ndarray, v: np.ndarray) -> tuple[int, float]:
+def best_match(x: np.ndarray, v: np.ndarray, cache: dict[Any, np.ndarray] | None = None) -> tuple[int, float]:
     """(shift, mismatch): the shift ``s`` of ``x`` (n, k) where ``x[s:s+m]`` best matches ``v`` (m, k), m <= n,
-    and the relative RMS mismatch there (see the module docstring); ``(-1, inf)`` when ``v`` does not vary."""
+    and the relative RMS mismatch there (see the module docstring); ``(-1, inf)`` when ``v`` does not vary.
+    ``cache``: a dict kept with ``x`` across calls, holding its running energy and its spectra by FFT size
+    (every chunk of a split is compared with the same training ranges)."""
+    cache = {} if cache is None else cache
     n, m = len(x), len(v)
     centred = float(np.sum((v - v.mean(axis=0)) ** 2))
     if m == 0 or m > n or not centred > 1e-12 * float(np.sum(v * v)):  # a held input (rounding aside)
         return -1, float("inf")
     size = 1 << int(np.ceil(np.log2(n + m)))
     # sum_t v[t] x[s + t] for every shift s = 0 .. n - m, summed over the inputs
-    cross = np.fft.irfft(np.fft.rfft(x, size, axis=0) * np.fft.rfft(v[::-1], size, axis=0), size, axis=0)
+    if size not in cache:
+        cache[size] = np.fft.rfft(x, size, axis=0)
+    cross = np.fft.irfft(cache[size] * np.fft.rfft(v[::-1], size, axis=0), size, axis=0)
     cross = cross.sum(axis=1)[m - 1 : n]
-    energy = np.concatenate([[0.0], np.cumsum(np.sum(x * x, axis=1))])
+    if "energy" not in cache:
+        cache["energy"] = np.concatenate([[0.0], np.cumsum(np.sum(x * x, axis=1))])
+    energy = cache["energy"]
     window = energy[m:] - energy[: n - m + 1]
     squared = window - 2.0 * cross + float(np.sum(v * v))
     # the latest of the equally good shifts: in a periodic record the nearest copy, one period back
@@ -78,14 +85,15 @@ def repeats_training(ds: Dataset, split: str) -> dict[str, Any] | None:
     train, _ = ds.concat_inputs("train")
     mean, std = train.mean(axis=0), train.std(axis=0)
     std = np.where(std > 0, std, 1.0)
-    scaled = [((ds.recordings[r].u[a:b] - mean) / std, r, a) for r, a, b in train_ranges]
+    caches: list[dict[Any, np.ndarray]] = [{} for _ in train_ranges]  # per training range, across the chunks
+    scaled = [((ds.recordings[r].u[a:b] - mean) / std, r, a, c) for (r, a, b), c in zip(train_ranges, caches)]
     worst, period, chunks = 0.0, None, 0
     for r, a, b in ranges:
         u = (ds.recordings[r].u - mean) / std
         for lo, hi in _chunks(a, b):
             v = u[lo:hi]
             found = min(
-                ((mis, tr, ta + s) for x, tr, ta in scaled for s, mis in [best_match(x, v)] if s >= 0),
+                ((mis, tr, ta + s) for x, tr, ta, cache in scaled for s, mis in [best_match(x, v, cache)] if s >= 0),
                 default=(float("inf"), -1, -1),
             )
             if not found[0] <= MISMATCH:

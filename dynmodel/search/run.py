@@ -176,11 +176,43 @@ def _progress_span(stage: str) -> tuple[float, float]:
     return {"screen": (0.0, 0.3), "grow": (0.3, 0.5), "full": (0.5, 0.8)}[stage]
 
 
-def context(
-    spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | None
-) -> tuple[SearchContext, str, int, str | None]:
-    """The search context, the layout kind, its number of folds (0: the spec's own splits) and why the
-    validation is short. 'recordings': three or more
+@dataclass(frozen=True)
+class Ranking:
+    """How a search ranks its candidates (:func:`context`): the layout kind (``mode``), its number of folds
+    (0: the spec's own splits), why the validation is short (None when it is not), the period of a periodic
+    excitation whose phases are held out (mode 'phase'; 0 otherwise) and, on a single hold-out (the spec's
+    validation split or the tail), :func:`repeated_validation`'s finding when that hold-out repeats the
+    training input (None otherwise)."""
+
+    mode: str
+    folds: int
+    short: str | None
+    period: int = 0
+    repeated: dict[str, Any] | None = None
+
+    def doubt(self) -> str | None:
+        """Why the validation cannot rank finely (the ``short_validation`` of :func:`.select.choose`), or None."""
+        if self.mode == "folds":
+            return f"{self.short}: the candidates were cross-validated in {self.folds} blocks"
+        if self.mode == "phase":
+            return self.short
+        if self.mode == "recordings":
+            return (
+                f"the {self.folds} training recordings were each left out in turn (a validation split taken from "
+                "the same recordings cannot tell how a model carries over to another recording)"
+            )
+        reasons = [self.short] if self.short and self.mode != "tail" else []
+        if self.repeated is not None:
+            reasons.append(REPEATED)
+        return "; ".join(reasons) or None
+
+    def repeat_caution(self) -> str | None:
+        """The note on a hold-out that repeats the training input, or None."""
+        return None if self.repeated is None else repeat_note(self.repeated) + "; so simpler candidates are preferred"
+
+
+def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | None) -> tuple[SearchContext, Ranking]:
+    """The search context and how its candidates are ranked (:class:`Ranking`). Modes: 'recordings': three or more
     recordings with fitting data, each left out in turn; 'folds': blocked cross-validation of short data;
     'tail': long data without a validation split, ranked on the last of :data:`FOLDS` blocks held out (the
     context's sample counts are that fold's); 'phase': a validation split that repeats the training input of
@@ -202,9 +234,11 @@ def context(
     if mode == "holdout" and n_val == 0 and folds >= 2:
         mode = "tail"  # ranked on the last block held out, never on the training error
         n_train, n_val = n_train - n_train // folds, n_train // folds
-    period = _phase_period(ds) if mode == "holdout" and n_train + n_val <= CV_MAX else None
+    held = Layout("fold", fold=folds - 1, folds=folds) if mode == "tail" else Layout("full")
+    repeated = repeated_validation(ds, held) if mode in ("holdout", "tail") else None
+    period = _phase_period(ds, repeated) if mode == "holdout" and n_train + n_val <= CV_MAX else None
     if period is not None:  # a periodic excitation: each phase of the period held out of every period in turn
-        mode, small, folds = "phase", True, FOLDS
+        mode, small, folds, repeated = "phase", True, FOLDS, None
         short = phase_note(period, folds)
         n_train, n_val = n_train + n_val - (n_train + n_val) // folds, (n_train + n_val) // folds
     folds = {"recordings": left_out, "holdout": 0}.get(mode, folds)
@@ -223,15 +257,15 @@ def context(
         cost=written_cost,
         budget=float(params.budget),
     )
-    return ctx, mode, folds, short
+    return ctx, Ranking(mode, folds, short, period or 0, repeated)
 
 
-def _phase_period(ds: Dataset) -> int | None:
+def _phase_period(ds: Dataset, found: dict[str, Any] | None) -> int | None:
     """The period of the excitation when the spec's validation split repeats the training input of its own
-    recording (:func:`repeated_validation`: and a test input does not, or there is no test set), the recording
+    recording (``found``, :func:`repeated_validation`'s finding: and a test input does not, or there is no
+    test set), the recording
     holds at least two periods before the validation split ends, a phase window (1 / FOLDS of the period)
     keeps MIN_BLOCK scored samples and, held out, repeats no training input; None otherwise."""
-    found = repeated_validation(ds, Layout("full"))
     period = int((found or {}).get("period") or 0)
     if not period or period // FOLDS - ds.transient < MIN_BLOCK:
         return None
@@ -262,7 +296,7 @@ class Search:
         self.executor = executor
         self.progress = progress
         self.cancel = cancel or threading.Event()
-        self.ctx, self.mode, self.folds, self.short = context(spec, ds, self.params, written_cost)
+        self.ctx, self.ranked_on = context(spec, ds, self.params, written_cost)
         self.budget = Budget(float(self.params.budget))
         self.entries: dict[str, Entry] = {}
         self.references: list[TaskResult] = []
@@ -274,22 +308,21 @@ class Search:
         self.started = time.monotonic()
         folds = self.folds
         if self.mode == "phase":  # a periodic excitation: each phase of the period held out in turn
-            self.notes.append(str(self.short))
+            self.notes.append(str(self.ranked_on.short))
         if self.mode == "tail":  # the last block held out
             self.notes.append(tail_note(folds))
             self.final_layouts = [Layout("fold", fold=folds - 1, folds=folds)]
         elif folds:
             kind = "recording" if self.mode == "recordings" else "fold"
             used = validated_folds(ds, folds) if self.mode == "folds" else list(range(folds))
-            period = (_phase_period(ds) or 0) if self.mode == "phase" else 0
-            self.final_layouts = [Layout(kind, fold=i, folds=folds, period=period) for i in used]
+            self.final_layouts = [Layout(kind, fold=i, folds=folds, period=self.ranked_on.period) for i in used]
         else:
             self.final_layouts = [Layout("full")]
-        # a periodic excitation split period by period: the validation shows the models their training input
-        # again and favours the larger ones (checked on a single hold-out: the spec's split or the tail)
-        self.repeated = repeated_validation(ds, self.final_layouts[0]) if self.mode in ("holdout", "tail") else None
-        if self.repeated is not None:
-            self.notes.append(repeat_note(self.repeated) + "; so simpler candidates are preferred")
+        # a periodic excitation split period by period on a single hold-out: the validation shows the models
+        # their training input again and favours the larger ones
+        caution = self.ranked_on.repeat_caution()
+        if caution is not None:
+            self.notes.append(caution)
         fresh = fresh_weight(ds, self.final_layouts[0])
         if fresh is not None:
             self.notes.append(
@@ -304,6 +337,14 @@ class Search:
         )
         self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
         self.base = self._base_spec()
+
+    @property
+    def mode(self) -> str:
+        return self.ranked_on.mode
+
+    @property
+    def folds(self) -> int:
+        return self.ranked_on.folds
 
     # ------------------------------------------------------------------ specs and tasks
     def _base_spec(self) -> dict[str, Any]:
@@ -719,27 +760,14 @@ class Search:
         levels = self._deciding_levels()
         summaries = {k: self.entries[k].summaries[lv] for k, lv in levels.items()}
         labels = {k: e.label for k, e in self.entries.items()}
-        short = None
-        if self.mode == "folds":
-            short = f"{self.short}: the candidates were cross-validated in {self.folds} blocks"
-        elif self.mode == "phase":
-            short = self.short
-        elif self.mode == "recordings":
-            short = (
-                f"the {self.folds} training recordings were each left out in turn (a validation split taken from "
-                "the same recordings cannot tell how a model carries over to another recording)"
-            )
-        elif self.short and self.mode != "tail":
-            short = self.short
         choice = choose(
             summaries,
             labels,
-            short_validation=short,
+            short_validation=self.ranked_on.doubt(),
             excursion=self.ctx.excursion,
             reference=self._reference_score(),
             uses_inputs=self.ctx.n_inputs > 0,
             fold_blocks=BLOCKS if self.mode in ("folds", "phase") else 0,
-            repeated_input=REPEATED if self.repeated is not None else None,
         )
         for k, e in self.entries.items():
             if k in choice.verdicts:
@@ -942,7 +970,8 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
     protocol limits and the starting candidates (nothing is fitted)."""
     params: AutoParams = spec.model.params
     written = spec.cost if "cost" in spec.model_fields_set else None
-    ctx, mode, k, short = context(spec, ds, params, written)
+    ctx, ranking = context(spec, ds, params, written)
+    mode, k, short = ranking.mode, ranking.folds, ranking.short
     families = searchable_families()
     chosen = params.families or list(families)
     lines = [
@@ -971,19 +1000,16 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         )
     if ctx.max_warmup is not None:
         lines.append(f"the protocol lets a run start from at most {ctx.max_warmup} measured outputs")
-    period = (_phase_period(ds) or 0) if mode == "phase" else 0
-    held_out = Layout("fold", fold=k - 1, folds=k, period=period)
+    held_out = Layout("fold", fold=k - 1, folds=k, period=ranking.period)
     fresh = fresh_weight(ds, held_out if mode in ("folds", "tail", "phase") else Layout("full"))
     if fresh is not None:
         lines.append(
             "the test data start recordings of their own: each validation run is also started afresh, as a test "
             f"recording is, and that start counts with weight {fresh[1]:.2g} (validation over test length)"
         )
-    if mode in ("holdout", "tail"):
-        held = Layout("fold", fold=k - 1, folds=k) if mode == "tail" else Layout("full")
-        repeated = repeated_validation(ds, held)
-        if repeated is not None:
-            lines.append(repeat_note(repeated) + "; so simpler candidates are preferred")
+    caution = ranking.repeat_caution()
+    if caution is not None:
+        lines.append(caution)
     if ctx.excursion > 0.05:
         lines.append(
             f"the test inputs leave the training range by {100 * ctx.excursion:.0f} % of its width: simpler, "

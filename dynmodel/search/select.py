@@ -286,7 +286,6 @@ def choose(
     reference: float | None = None,
     uses_inputs: bool = True,
     fold_blocks: int = 0,
-    repeated_input: str | None = None,
 ) -> Choice:
     """The winner among ``summaries`` (candidate key -> Summary at the deciding level), see the module
     docstring. ``labels``: key -> a short description for the notes. ``short_validation``: why the
@@ -332,9 +331,6 @@ def choose(
     if short_validation:
         out.cautious.append(short_validation)
         pairable, group = fold_blocks > 1, fold_blocks
-    if repeated_input:
-        out.cautious.append(repeated_input)
-        pairable = False
     if excursion > EXTRAPOLATION:
         out.cautious.append(f"the test inputs leave the training range by {100 * excursion:.0f} % of its width")
         pairable = False
