@@ -83,6 +83,32 @@ def reversals(u: np.ndarray, deadband: float = 0.0) -> tuple[np.ndarray, np.ndar
     return _reversals(np.ascontiguousarray(u, dtype=np.float64), float(deadband))
 
 
+#: an input moves like a position when it reverses less often than once per this many samples (the direction
+#: of a noise-like input means nothing)
+POSITION_STROKE = 20
+#: the deadband of a reversal, as a fraction of the input's 1-99 % quantile span
+DEADBAND_FRACTION = 0.005
+#: an input held in every recording (it moves less than this fraction of its span within each) is no position
+HELD_FRACTION = 0.1
+
+
+def position_like(pieces: Sequence[np.ndarray]) -> float | None:
+    """The reversal deadband of a 1-D input given in ``pieces`` (recordings) when it moves like a position:
+    fewer than one reversal per :data:`POSITION_STROKE` samples with a deadband of :data:`DEADBAND_FRACTION` of
+    its 1-99 % span; None otherwise (a noise-like input, or one held in every recording, as a set pressure)."""
+    pieces = [np.asarray(p, dtype=np.float64) for p in pieces if len(p)]
+    if not pieces:
+        return None
+    lo, hi = np.quantile(np.concatenate(pieces), [0.01, 0.99])
+    deadband = DEADBAND_FRACTION * float(hi - lo)
+    moving = max(float(np.subtract(*np.quantile(p, [0.99, 0.01]))) for p in pieces)
+    if not deadband > 0 or moving < HELD_FRACTION * (hi - lo):
+        return None
+    count = sum(int(np.sum(d[1:] != d[:-1])) for d in (reversals(p, deadband)[0] for p in pieces))
+    n = sum(len(p) for p in pieces)
+    return deadband if 0 < count and POSITION_STROKE * count <= n else None
+
+
 def kind(item: dict[str, Any]) -> str:
     for key in ("time", "direction", "since_reversal"):
         if key in item and item[key] is not None:

@@ -35,6 +35,7 @@ import numpy as np
 from .. import registry
 from ..batch import run_specs
 from ..data.dataset import Dataset
+from ..data.derived import position_like
 from ..data.repeats import repeat_note, repeats_training
 from ..errors import DynmodelError
 from ..extensions import merge
@@ -256,8 +257,20 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         seeds=int(params.seeds),
         cost=written_cost,
         budget=float(params.budget),
+        positions=_positions(ds),
     )
     return ctx, Ranking(mode, folds, short, period or 0, repeated)
+
+
+def _positions(ds: Dataset) -> dict[str, float]:
+    """The training inputs that move like a position, with the deadband of their reversals."""
+    pieces = [ds.recordings[rec].u[start:stop] for rec, start, stop in ds.ranges.get("train", [])]
+    out = {}
+    for j, name in enumerate(ds.input_names):
+        deadband = position_like([p[:, j] for p in pieces])
+        if deadband is not None:
+            out[name] = float(f"{deadband:.3g}")
+    return out
 
 
 def _phase_period(ds: Dataset, found: dict[str, Any] | None) -> int | None:
@@ -565,7 +578,7 @@ class Search:
 
     # ------------------------------------------------------------------ stages
     def _add(self, cand: Candidate, origin: str) -> Entry | None:
-        if cand.key in self.entries:
+        if cand.key in self.entries or (cand.data and "data-extensions" in self.params.exclude):
             return None
         entry = Entry(cand, origin, reuse_screen=self._screen_is_final(cand))
         self.entries[cand.key] = entry
@@ -927,6 +940,7 @@ class Search:
                 "max_warmup": self.ctx.max_warmup,
                 "excursion": self.ctx.excursion,
                 "small": self.ctx.small,
+                "positions": dict(self.ctx.positions),
             },
             "budget": self.budget.to_json(),
             "stages": self.stages,

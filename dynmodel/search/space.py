@@ -52,6 +52,9 @@ class SearchContext:
     seeds: int = 3
     cost: str | None = None  # a cost the user wrote (every candidate then uses it), else None
     budget: float = 300.0
+    #: inputs that move like a position (:func:`dynmodel.data.derived.position_like`) and the deadband of their
+    #: reversals: direction and travel-since-reversal features of them mean something (friction, hysteresis)
+    positions: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_inputs(self) -> int:

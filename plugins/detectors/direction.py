@@ -15,15 +15,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from dynmodel.data.derived import reversals
+from dynmodel.data.derived import DEADBAND_FRACTION, POSITION_STROKE, reversals
 from dynmodel.diagnose.context import Context
 from dynmodel.diagnose.dependence import holdout_share, lagged
 from dynmodel.diagnose.detector import Detector, Extension, Finding
 
 from ._extend import inputs_patch
 
-MAX_REVERSAL_RATE = 0.05
-DEADBAND = 0.005
+MAX_REVERSAL_RATE = 1.0 / POSITION_STROKE
+DEADBAND = DEADBAND_FRACTION
 
 
 def direction_features(u_segs: list[np.ndarray], deadband: float, span: float) -> tuple[np.ndarray, np.ndarray, int]:

@@ -9,7 +9,9 @@ weaker and stronger input weights, slower leaky elements, a ridge readout over a
 external mode for an internal network, and, for an internal network on data without delay lines, input
 delay lines in difference form u(t) - u(t - d) at d = 1, 2, 5, 10, 25, 50, 100 samples (at most a fiftieth of
 the training samples): an external memory of the input's recent displacements, what pre-sliding friction
-and other hysteresis need (thesis 6.2.3; a data-side extension, the data section patched).
+and other hysteresis need (thesis 6.2.3; a data-side extension, the data section patched); and, for inputs
+that move like a position (``SearchContext.positions``), their direction of motion and travel since the last
+reversal as inputs, alone and with the delay lines (thesis 6.1-6.3: friction depends on them).
 """
 
 from __future__ import annotations
@@ -126,6 +128,7 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
                 data={"delay_lines": delays, "delay_form": "difference"},
             )
         )
+    out += _direction_neighbours(ctx, found, p, size, delays)
     tune = _tune_in(ctx)
     if not external and tune is not None:
         out.append(
@@ -137,6 +140,30 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
                 True,
             )
         )
+    return out
+
+
+def _direction_neighbours(
+    ctx: SearchContext, found: Found, p: dict[str, Any], size: int, delays: list[int]
+) -> list[Candidate]:
+    """For an internal network and inputs that move like a position: their direction of motion and travel since
+    the last reversal as inputs (``derived_inputs``, thesis 6.1-6.3: what a friction force or a hysteresis loop
+    depends on beyond the delay lines' last 100 samples, e.g. a slow creep in one direction), kept with the
+    network's delay lines, and with new ones."""
+    data = found.candidate.data
+    if p.get("mode") == "external" or not ctx.positions or ctx.data.get("derived_inputs") or "derived_inputs" in data:
+        return []
+    derived = [
+        {kind: name, "deadband": deadband}
+        for name, deadband in ctx.positions.items()
+        for kind in ("direction", "since_reversal")
+    ]
+    what = f"internal, {size} elements, direction and travel since the last reversal of {', '.join(ctx.positions)}"
+    out = [_cand(ctx, what + " as inputs", p, size, data={**data, "derived_inputs": derived})]
+    if len(delays) >= 2 and not ctx.data.get("delay_lines") and not data:
+        lines = f", and input delay lines u(t) - u(t - d), d = {', '.join(map(str, delays))}"
+        patch = {"delay_lines": delays, "delay_form": "difference", "derived_inputs": derived}
+        out.append(_cand(ctx, what + " as inputs" + lines, p, size, data=patch))
     return out
 
 

@@ -1,0 +1,116 @@
+"""Inputs that move like a position, and the direction features the search offers around a network of them
+(docs/auto.md, "Friction")."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import make_spec, write_csv
+
+from dynmodel import engine
+from dynmodel.data import load_dataset
+from dynmodel.data.derived import position_like
+from dynmodel.family import no_progress
+from dynmodel.search import search_options
+from dynmodel.search.params import AutoParams
+from dynmodel.search.run import context
+from dynmodel.search.space import Candidate, Found, SearchContext
+from dynmodel.spec import validate_spec
+from dynmodel_plugins.esn.search import neighbours
+
+
+def _slow(n: int, seed: int) -> np.ndarray:
+    """A smooth position: a few slow sines (strokes of 100 to 400 samples)."""
+    t = np.arange(n)
+    rng = np.random.default_rng(seed)
+    return sum(np.sin(2 * np.pi * t / p + rng.uniform(0, 2 * np.pi)) for p in (800, 390, 230))
+
+
+def test_a_position_has_a_deadband_and_noise_or_a_held_pressure_has_none():
+    x = _slow(6000, 0)
+    span = np.subtract(*np.quantile(x, [0.99, 0.01]))
+    assert position_like([x]) == pytest.approx(0.005 * span)
+    noise = np.random.default_rng(1).standard_normal(6000)
+    assert position_like([noise]) is None  # it reverses about every other sample
+    held = [level + 0.01 * _slow(2000, k) for k, level in enumerate((1.0, 3.0, 7.0))]
+    assert position_like(held) is None  # set per recording: it barely moves within any of them
+    assert position_like([np.zeros(100)]) is None
+    assert position_like([np.linspace(0, 1, 500)]) is None  # never reverses: no direction to tell
+
+
+def _ctx(positions: dict[str, float], data: dict | None = None) -> SearchContext:
+    return SearchContext(("x", "p"), ("f",), 1.0, 6000, 2000, data or {}, positions=positions)
+
+
+def _found(params: dict, data: dict | None = None) -> Found:
+    return Found(Candidate("esn", params, "a network", data=data or {}), None, {}, 1.0)
+
+
+def test_the_esn_offers_direction_features_of_its_positions_alone_and_with_delay_lines():
+    out = neighbours(_ctx({"x": 0.01}), _found({"size": 400}))
+    patches = [c.data for c in out if "derived_inputs" in c.data]
+    derived = [{"direction": "x", "deadband": 0.01}, {"since_reversal": "x", "deadband": 0.01}]
+    assert patches == [
+        {"derived_inputs": derived},
+        {"delay_lines": [1, 2, 5, 10, 25, 50, 100], "delay_form": "difference", "derived_inputs": derived},
+    ]
+    assert all(c.params == {"size": 400} for c in out if c.data in patches)
+    # around a network that has delay lines already, they are kept
+    lines = {"delay_lines": [1, 2, 5], "delay_form": "difference"}
+    around = [c.data for c in neighbours(_ctx({"x": 0.01}), _found({}, lines)) if "derived_inputs" in c.data]
+    assert around == [{**lines, "derived_inputs": derived}]
+
+
+@pytest.mark.parametrize(
+    "ctx, found",
+    [
+        (_ctx({}), _found({})),  # no input moves like a position
+        (_ctx({"x": 0.01}), _found({"mode": "external", "tune_in": 20})),  # a fed-back network
+        (_ctx({"x": 0.01}, {"derived_inputs": [{"time": "linear"}]}), _found({})),  # the spec derives inputs
+    ],
+)
+def test_no_direction_features_where_they_do_not_apply(ctx, found):
+    assert not any("derived_inputs" in c.data for c in neighbours(ctx, found))
+
+
+def test_the_search_context_names_the_position_and_not_the_noise_input(tmp_path):
+    n = 3000
+    x, u = _slow(n, 2), np.random.default_rng(3).standard_normal(n)
+    path = write_csv(tmp_path / "d.csv", {"x": x, "u": u, "f": np.tanh(5 * np.gradient(x)) + 0.1 * u})
+    raw = {
+        "data": {"path": str(path), "input": ["x", "u"], "output": ["f"], "split": {"train": 0.7, "validation": 0.3}},
+        "model": {"family": "auto"},
+    }
+    spec = make_spec(raw)
+    ctx, _ = context(spec, load_dataset(spec), AutoParams(), None)
+    assert list(ctx.positions) == ["x"]
+    assert ctx.positions["x"] == pytest.approx(0.005 * np.subtract(*np.quantile(x[:2100], [0.99, 0.01])), rel=1e-2)
+
+
+def _dahl_search(tmp_path, exclude: list[str]) -> dict:
+    raw = {
+        "data": {
+            "generator": "dahl",
+            "n": 4000,
+            "seed": 1,
+            "input": ["position"],
+            "output": ["force"],
+            "split": {"train": 0.75, "validation": 0.25},
+        },
+        "model": {"family": "auto", "params": {"families": ["esn"], "budget": 20, "seeds": 1, "exclude": exclude}},
+        "seed": 0,
+    }
+    spec = validate_spec(raw, "<test>", tmp_path)
+    with search_options(workers=1):
+        model, _ = engine.fit_dataset(spec, load_dataset(spec), no_progress)
+    return model.search
+
+
+def test_a_friction_search_measures_direction_features_unless_data_extensions_are_excluded(tmp_path):
+    rec = _dahl_search(tmp_path, [])
+    assert rec["context"]["positions"] == {"position": pytest.approx(1.7e-7, rel=0.2)}
+    measured = [c for c in rec["candidates"] if "derived_inputs" in c["data"] and c["levels"]]
+    assert len(measured) >= 2 and all(math.isfinite(c["validation_nmse"]) for c in measured)
+    assert not any(c["data"] for c in _dahl_search(tmp_path, ["data-extensions"])["candidates"])
