@@ -128,6 +128,7 @@ def test_validate_explains_the_search(tmp_path, cli):
     assert "auto: family: auto searches narx, esn with a budget of 3 s" in result.output
     assert "at most 20 measured outputs" in result.output  # the test set's window limits the tune-ins
     assert "narx:" in result.output and "starting candidates" in result.output
+    assert "like a position" not in result.output  # the narx system's input is noise-like
 
 
 # ------------------------------------------------------------------------------------ the search

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import make_spec, write_csv
+from conftest import make_spec, write_csv, write_yaml
 
 from dynmodel import engine
 from dynmodel.data import load_dataset
@@ -106,6 +106,16 @@ def _dahl_search(tmp_path, exclude: list[str]) -> dict:
     with search_options(workers=1):
         model, _ = engine.fit_dataset(spec, load_dataset(spec), no_progress)
     return model.search
+
+
+def test_validate_names_the_inputs_that_move_like_a_position(tmp_path, cli):
+    raw = {
+        "data": {"generator": "dahl", "n": 2000, "input": ["position"], "output": ["force"]},
+        "model": {"family": "auto"},
+    }
+    result = cli("validate", write_yaml(tmp_path / "s.yaml", raw))
+    assert result.exit_code == 0, result.output
+    assert "auto: inputs that move like a position: position (" in result.output
 
 
 def test_a_friction_search_measures_direction_features_unless_data_extensions_are_excluded(tmp_path):

@@ -1029,6 +1029,11 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
             f"the test inputs leave the training range by {100 * ctx.excursion:.0f} % of its width: simpler, "
             "bounded candidates are preferred"
         )
+    if ctx.positions:
+        lines.append(
+            f"inputs that move like a position: {', '.join(ctx.positions)} (the families may offer the direction of "
+            "motion and the travel since the last reversal as inputs: friction, hysteresis)"
+        )
     if written:
         lines.append(f"every candidate uses the cost you wrote ({written})")
     for name in chosen:
