@@ -118,7 +118,10 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
         )
     )
     delays = [d for d in _DELAYS if d <= ctx.n_train // 50]
-    if not external and len(delays) >= 2 and not ctx.data.get("delay_lines") and not found.candidate.data:
+    # delay lines are offered to an internal network on data without any yet
+    if external or len(delays) < 2 or ctx.data.get("delay_lines") or found.candidate.data:
+        delays = []
+    if delays:
         out.append(
             _cand(
                 ctx,
@@ -128,7 +131,8 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
                 data={"delay_lines": delays, "delay_form": "difference"},
             )
         )
-    out += _direction_neighbours(ctx, found, p, size, delays)
+    if not external:
+        out += _direction_neighbours(ctx, found, p, size, delays)
     tune = _tune_in(ctx)
     if not external and tune is not None:
         out.append(
@@ -149,9 +153,9 @@ def _direction_neighbours(
     """For an internal network and inputs that move like a position: their direction of motion and travel since
     the last reversal as inputs (``derived_inputs``, thesis 6.1-6.3: what a friction force or a hysteresis loop
     depends on beyond the delay lines' last 100 samples, e.g. a slow creep in one direction), kept with the
-    network's delay lines, and with new ones."""
+    network's delay lines, and with the new ones (``delays``, [] when none are offered)."""
     data = found.candidate.data
-    if p.get("mode") == "external" or not ctx.positions or ctx.data.get("derived_inputs") or "derived_inputs" in data:
+    if not ctx.positions or ctx.data.get("derived_inputs") or "derived_inputs" in data:
         return []
     derived = [
         {kind: name, "deadband": deadband}
@@ -160,7 +164,7 @@ def _direction_neighbours(
     ]
     what = f"internal, {size} elements, direction and travel since the last reversal of {', '.join(ctx.positions)}"
     out = [_cand(ctx, what + " as inputs", p, size, data={**data, "derived_inputs": derived})]
-    if len(delays) >= 2 and not ctx.data.get("delay_lines") and not data:
+    if delays:
         lines = f", and input delay lines u(t) - u(t - d), d = {', '.join(map(str, delays))}"
         patch = {"delay_lines": delays, "delay_form": "difference", "derived_inputs": derived}
         out.append(_cand(ctx, what + " as inputs" + lines, p, size, data=patch))
