@@ -89,9 +89,9 @@ def repeats_training(ds: Dataset, split: str) -> dict[str, Any] | None:
     scaled = [((ds.recordings[r].u[a:b] - mean) / std, r, a, c) for (r, a, b), c in zip(train_ranges, caches)]
     worst, period, chunks = 0.0, None, 0
     for r, a, b in ranges:
-        u = (ds.recordings[r].u - mean) / std
+        u = (ds.recordings[r].u[a:b] - mean) / std  # the range only, scaled once for its chunks
         for lo, hi in _chunks(a, b):
-            v = u[lo:hi]
+            v = u[lo - a : hi - a]
             found = min(
                 ((mis, tr, ta + s) for x, tr, ta, cache in scaled for s, mis in [best_match(x, v, cache)] if s >= 0),
                 default=(float("inf"), -1, -1),

@@ -191,6 +191,12 @@ class Ranking:
     period: int = 0
     repeated: dict[str, Any] | None = None
 
+    @property
+    def blocked(self) -> bool:
+        """Are the candidates scored on blocks of the fitting samples held out in turn (in time, or phases of a
+        period)? Then they are screened on the same layouts and compared block by block."""
+        return self.mode in ("folds", "phase")
+
     def doubt(self) -> str | None:
         """Why the validation cannot rank finely (the ``short_validation`` of :func:`.select.choose`), or None."""
         if self.mode == "folds":
@@ -276,9 +282,9 @@ def _positions(ds: Dataset) -> dict[str, float]:
 def _phase_period(ds: Dataset, found: dict[str, Any] | None) -> int | None:
     """The period of the excitation when the spec's validation split repeats the training input of its own
     recording (``found``, :func:`repeated_validation`'s finding: and a test input does not, or there is no
-    test set), the recording
-    holds at least two periods before the validation split ends, a phase window (1 / FOLDS of the period)
-    keeps MIN_BLOCK scored samples and, held out, repeats no training input; None otherwise."""
+    test set), the recording holds at least two periods before the validation split ends, a phase window
+    (1 / FOLDS of the period) keeps MIN_BLOCK scored samples and, held out, repeats no training input; None
+    otherwise."""
     period = int((found or {}).get("period") or 0)
     if not period or period // FOLDS - ds.transient < MIN_BLOCK:
         return None
@@ -346,7 +352,7 @@ class Search:
         # successive halving: screened on the last SCREEN_SAMPLES of a longer training (blocked folds are short
         # data, screened as they are validated)
         self.screen_layouts = (
-            self.final_layouts if self.mode in ("folds", "phase") else [self._screened(x) for x in self.final_layouts]
+            self.final_layouts if self.ranked_on.blocked else [self._screened(x) for x in self.final_layouts]
         )
         self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
         self.base = self._base_spec()
@@ -780,7 +786,7 @@ class Search:
             excursion=self.ctx.excursion,
             reference=self._reference_score(),
             uses_inputs=self.ctx.n_inputs > 0,
-            fold_blocks=BLOCKS if self.mode in ("folds", "phase") else 0,
+            fold_blocks=BLOCKS if self.ranked_on.blocked else 0,
         )
         for k, e in self.entries.items():
             if k in choice.verdicts:

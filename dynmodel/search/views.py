@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..data.dataset import Dataset, Recording, compact_ranges, last_samples, own_runs
+from ..data.repeats import repeats_training
 
 FIT_SPLITS = ("train", "validation")
 #: smallest validation block of a fold (samples)
@@ -290,8 +291,6 @@ def repeated_validation(ds: Dataset, layout: Layout) -> dict[str, Any] | None:
     repeats its training input (a periodic excitation split period by period) while a test input does not, or
     there is no test set (the model will meet new inputs); None otherwise. A test set that repeats the training
     input too is scored on that input again, and the validation then ranks candidates as it does."""
-    from ..data.repeats import repeats_training
-
     found = repeats_training(view(ds, layout), "validation")
     if found is None:
         return None
