@@ -54,3 +54,61 @@ def test_a_brief_overshoot_passes_but_not_a_long_or_a_far_one(ds):
     y = np.full(N, 0.5)
     y[1500] = np.nan  # a run that turned non-finite, once
     assert _leaves(ds, y) == 1500
+
+
+class _KickedByItsStart:
+    """A one-lag model y[t] = u[t] + e (0.5 + 10 |u[t] - u[t-1]| |e|), e = y[t-1] - u[t-1]: settled (e = 0) it
+    follows its input; a state far from it decays while the input is held, and diverges while it moves."""
+
+    warmup = 1
+
+    def run(self, u, y0):
+        y = np.empty_like(u)
+        y[0] = y0[0]
+        with np.errstate(over="ignore", invalid="ignore"):
+            for t in range(1, len(u)):
+                e = y[t - 1] - u[t - 1]
+                y[t] = u[t] + e * (0.5 + 10.0 * np.abs(u[t] - u[t - 1]) * np.abs(e))
+        return type("Run", (), {"y": y})()
+
+
+class _DriftsWhenHeld(_KickedByItsStart):
+    """y[t] = u[t] + 1.1 e while the input is held, u[t] + 0.5 e while it moves: a held input (which its
+    training data never showed) drives it away."""
+
+    def run(self, u, y0):
+        y = np.empty_like(u)
+        y[0] = y0[0]
+        with np.errstate(over="ignore", invalid="ignore"):
+            for t in range(1, len(u)):
+                e = y[t - 1] - u[t - 1] + (0.01 if u[t] == u[t - 1] else 0.0)
+                y[t] = u[t] + e * (1.1 if u[t] == u[t - 1] else 0.5)
+        return type("Run", (), {"y": y})()
+
+
+@pytest.fixture
+def mid_motion(tmp_path) -> Dataset:
+    """Training on a slow sine; a test file of its own (no window) that starts far from the training mean,
+    moving."""
+    t = np.arange(1000)
+    write_csv(tmp_path / "d.csv", {"u": np.sin(t / 30.0), "y": 0.99 * np.sin(t / 30.0)})
+    moving = -0.9 + 0.3 * np.sin(np.arange(600) / 2.0)
+    write_csv(tmp_path / "t.csv", {"u": moving, "y": 0.99 * moving})
+    raw = {
+        "data": {"path": "d.csv", "input": ["u"], "output": ["y"], "split": {"train": 1.0}, "test": {"path": "t.csv"}},
+        "model": {"family": "narx"},
+    }
+    return load_dataset(validate_spec(raw, "<test>", tmp_path))
+
+
+def test_a_test_recording_without_a_window_fails_only_when_both_starts_leave_the_band(mid_motion, monkeypatch):
+    """A model that starts from measured outputs, on a test recording without an initialization window (the
+    evaluation reads its first outputs, the search may not), is run from rest at the training mean and, where
+    that leaves the band, settled at its first input: each start alone meets a state its data may never show."""
+    kicked = checks.band_checks(_KickedByItsStart(), mid_motion)  # diverges from rest, not settled
+    assert kicked["ok"] and kicked["test"]["start"] == "either"
+    assert checks.band_checks(_DriftsWhenHeld(), mid_motion)["ok"]  # drifts settled, not from rest
+    monkeypatch.setattr(checks, "SETTLE", 0)  # "settled" is then from rest too: the kick fails both
+    failed = checks.band_checks(_KickedByItsStart(), mid_motion)
+    assert not failed["ok"] and failed["test"]["sample"] < 20
+    assert checks.failed_split(failed).endswith("(run from rest, and settled at its first input)")

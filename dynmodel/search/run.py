@@ -35,6 +35,7 @@ import numpy as np
 from .. import registry
 from ..batch import run_specs
 from ..data.dataset import Dataset
+from ..data.delay import dead_times
 from ..data.derived import position_like
 from ..data.repeats import repeat_note, repeats_training
 from ..errors import DynmodelError
@@ -264,6 +265,7 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         cost=written_cost,
         budget=float(params.budget),
         positions=_positions(ds),
+        dead_times=_dead_times(ds),
     )
     return ctx, Ranking(mode, folds, short, period or 0, repeated)
 
@@ -277,6 +279,16 @@ def _positions(ds: Dataset) -> dict[str, float]:
         if deadband is not None:
             out[name] = float(f"{deadband:.3g}")
     return out
+
+
+def _dead_times(ds: Dataset) -> dict[str, int]:
+    """The training inputs that act on an output only after a dead time, in samples."""
+    rows = ds.ranges.get("train", [])
+    if not rows:
+        return {}
+    u = [ds.recordings[rec].u[start:stop] for rec, start, stop in rows]
+    y = [ds.recordings[rec].y[start:stop] for rec, start, stop in rows]
+    return dead_times(u, y, ds.input_names)
 
 
 def _phase_period(ds: Dataset, found: dict[str, Any] | None) -> int | None:
@@ -947,6 +959,7 @@ class Search:
                 "excursion": self.ctx.excursion,
                 "small": self.ctx.small,
                 "positions": dict(self.ctx.positions),
+                "dead_times": dict(self.ctx.dead_times),
             },
             "budget": self.budget.to_json(),
             "stages": self.stages,
@@ -1040,6 +1053,9 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
             f"inputs that move like a position: {', '.join(ctx.positions)} (the families may offer the direction of "
             "motion and the travel since the last reversal as inputs: friction, hysteresis)"
         )
+    if ctx.dead_times:
+        delays = ", ".join(f"{name} after {d} samples" for name, d in ctx.dead_times.items())
+        lines.append(f"inputs that act after a dead time: {delays} (the families may offer lags from it)")
     if written:
         lines.append(f"every candidate uses the cost you wrote ({written})")
     for name in chosen:

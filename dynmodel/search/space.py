@@ -55,6 +55,9 @@ class SearchContext:
     #: inputs that move like a position (:func:`dynmodel.data.derived.position_like`) and the deadband of their
     #: reversals: direction and travel-since-reversal features of them mean something (friction, hysteresis)
     positions: dict[str, float] = field(default_factory=dict)
+    #: inputs that act on an output only after a dead time (:func:`dynmodel.data.delay.dead_times`), in samples:
+    #: lags that start there reach the input's effect without a longer embedding
+    dead_times: dict[str, int] = field(default_factory=dict)
 
     @property
     def n_inputs(self) -> int:

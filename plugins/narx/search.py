@@ -10,6 +10,7 @@ on the free run (``cost: mse_inf``). So the starting candidates vary what the de
 * a longer memory at degree 2 (inputs 0..L, outputs 1..L with L up to 12 while the pool stays small:
   slow, smooth systems such as cascaded tanks);
 * a linear model with long lags (an ARX / output-error reference the nonlinear ones must beat);
+* where an input acts only after a dead time (``ctx.dead_times``), the default's pool on lags that start there;
 * a second-order linear output-error model settled at its first input and unclipped (``initial: settled``,
   its terms chosen on validation, no output bounds, screened on the free run too): a run starts from rest at
   its first input, so its level must come from the inputs, not from measured initial outputs it could carry
@@ -120,6 +121,24 @@ def _output_error(ctx: SearchContext, L: int = 2) -> Candidate:
     )
 
 
+def _after_dead_times(ctx: SearchContext, pool: int, terms: int) -> Candidate:
+    """The default's pool with each input's lags starting at its dead time (``ctx.dead_times``): inputs d .. d + L,
+    outputs 1 .. L, the degree chosen on validation. The default's lags 0 .. L (L <= 6) never reach an input
+    that acts 25 samples later (a generated plant: 0.80 % test NMSE; from the dead time, 0.15 %)."""
+    L = _max_lag(ctx, 3, 600, 6)
+    delays = {u: ctx.dead_times.get(u, 0) for u in _model_inputs(ctx)}
+    table: dict[str, list[dict[str, int]]] = {u: [{"from": d, "to": d + L}] for u, d in delays.items()}
+    table.update({y: [{"from": 1, "to": L}] for y in ctx.output_names})
+    shown = ", ".join(f"{u} {d}..{d + L}" for u, d in delays.items() if d)
+    return _candidate(
+        ctx,
+        f"lags from the dead time: inputs {shown}, outputs 1..{L}, degree chosen on validation",
+        {"lags": table, **_initial(ctx, L + max(delays.values()))},
+        pool,
+        terms,
+    )
+
+
 def starting(ctx: SearchContext) -> list[Candidate]:
     out = []
     zeros = {} if ctx.max_warmup != 0 else {"initial": "zeros"}
@@ -164,6 +183,8 @@ def starting(ctx: SearchContext) -> list[Candidate]:
         )
     )
     out.append(_output_error(ctx))
+    if ctx.dead_times:
+        out.append(_after_dead_times(ctx, pool6, expected_terms))
     if ctx.excursion <= 0.05 and not ctx.small:
         out.append(
             _candidate(
