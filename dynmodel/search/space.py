@@ -67,6 +67,18 @@ class SearchContext:
     def n_outputs(self) -> int:
         return len(self.output_names)
 
+    def direction_inputs(self) -> list[dict[str, Any]]:
+        """``derived_inputs`` items for every input that moves like a position (:attr:`positions`): its direction
+        of motion and travel since the last reversal, with its deadband (thesis 6.1-6.3: what a friction force
+        or a hysteresis loop depends on); [] when no input does, or the spec derives inputs of its own."""
+        if self.data.get("derived_inputs"):
+            return []
+        return [
+            {kind: name, "deadband": deadband}
+            for name, deadband in self.positions.items()
+            for kind in ("direction", "since_reversal")
+        ]
+
     def allows_warmup(self, samples: int) -> bool:
         """May a run start from ``samples`` measured outputs under the protocol?"""
         return self.max_warmup is None or samples <= self.max_warmup

@@ -155,13 +155,9 @@ def _direction_neighbours(
     depends on beyond the delay lines' last 100 samples, e.g. a slow creep in one direction), kept with the
     network's delay lines, and with the new ones (``delays``, [] when none are offered)."""
     data = found.candidate.data
-    if not ctx.positions or ctx.data.get("derived_inputs") or "derived_inputs" in data:
+    derived = ctx.direction_inputs()
+    if not derived or "derived_inputs" in data:
         return []
-    derived = [
-        {kind: name, "deadband": deadband}
-        for name, deadband in ctx.positions.items()
-        for kind in ("direction", "since_reversal")
-    ]
     what = f"internal, {size} elements, direction and travel since the last reversal of {', '.join(ctx.positions)}"
     out = [_cand(ctx, what + " as inputs", p, size, data={**data, "derived_inputs": derived})]
     if delays:

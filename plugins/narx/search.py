@@ -10,6 +10,9 @@ on the free run (``cost: mse_inf``). So the starting candidates vary what the de
 * a longer memory at degree 2 (inputs 0..L, outputs 1..L with L up to 12 while the pool stays small:
   slow, smooth systems such as cascaded tanks);
 * a linear model with long lags (an ARX / output-error reference the nonlinear ones must beat);
+* for inputs that move like a position (``ctx.positions``), the default with their direction of motion and
+  travel since the last reversal as inputs (``derived_inputs``, thesis 6.1-6.3: a Coulomb force is a
+  direction times a level, a Dahl or LuGre force follows the travel since the last reversal);
 * where an input acts only after a dead time (``ctx.dead_times``), the default's pool on lags that start there;
 * a second-order linear output-error model settled at its first input and unclipped (``initial: settled``,
   its terms chosen on validation, no output bounds, screened on the free run too): a run starts from rest at
@@ -23,7 +26,8 @@ Every candidate is screened with least-squares weights (``cost: mse1``: FOS and 
 no free-running re-estimation) and re-estimated on the free run only when it survives. Neighbours of a
 good candidate (``around``) start from what its fit chose (lags L, degree d, k terms): two more lags, one
 more degree, half and twice the terms, the output clipped at the training range (a saturating sensor),
-ridge weights, and terms selected on the free-running error.
+ridge weights, and terms selected on the free-running error; each keeps the data-side extensions of the
+candidate it grows from.
 """
 
 from __future__ import annotations
@@ -183,6 +187,19 @@ def starting(ctx: SearchContext) -> list[Candidate]:
         )
     )
     out.append(_output_error(ctx))
+    derived = ctx.direction_inputs()
+    if derived:
+        out.append(
+            _candidate(
+                ctx,
+                f"lags and degree chosen on validation, direction and travel since the last reversal of "
+                f"{', '.join(ctx.positions)} as inputs",
+                dict(zeros),
+                pool6,
+                expected_terms,
+                data={"derived_inputs": derived},
+            )
+        )
     if ctx.dead_times:
         out.append(_after_dead_times(ctx, pool6, expected_terms))
     if ctx.excursion <= 0.05 and not ctx.small:
@@ -233,8 +250,10 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
     regs = sum(len(v) for v in table.values())
     out = []
 
+    data = found.candidate.data  # its data-side extensions (derived inputs): the lags name them
+
     def add(summary: str, params: dict[str, Any], pool: int, k: int, complexity: float | None = None) -> None:
-        out.append(_candidate(ctx, summary, params, pool, k, complexity=complexity))
+        out.append(_candidate(ctx, summary, params, pool, k, complexity=complexity, data=data))
 
     k = terms or 10
     fixed = {"lags": compact, "degree": degree, **base}
@@ -283,6 +302,7 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
                 params={**fixed, "selection": "free_run", "growth_window": GROWTH_WINDOW},
                 summary=f"degree {degree}, lags up to {L}, terms selected on the free-running error",
                 cost="mse_inf",
+                data=data,
                 # every growth step re-estimates the weights on the free run (on the growth window), then once
                 # more on the whole training split
                 work=max(2.0, k / 2) * grow + (whole if ctx.n_train > GROWTH_WINDOW else 0.0),
