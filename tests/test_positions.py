@@ -85,7 +85,9 @@ def test_the_narx_family_offers_its_default_with_direction_features_and_its_neig
     assert not any(c.data for c in narx_search.starting(_ctx({"x": 0.01}, {"derived_inputs": [{"time": "linear"}]})))
 
     class Fitted:  # what a fit on those inputs chose: its lags name the derived inputs
-        embedding_ = type("E", (), {"regressors": [type("R", (), {"name": n, "lag": 1})() for n in ("x", "x_dir", "f")]})
+        embedding_ = type(
+            "E", (), {"regressors": [type("R", (), {"name": n, "lag": 1})() for n in ("x", "x_dir", "f")]}
+        )
         exponents_ = [np.array([1, 1, 1])]
         terms_ = [[0, 1, 2]]
         selection_: dict = {}
@@ -119,7 +121,10 @@ def _dahl_search(tmp_path, exclude: list[str], families: tuple[str, ...] = ("esn
             "output": ["force"],
             "split": {"train": 0.75, "validation": 0.25},
         },
-        "model": {"family": "auto", "params": {"families": list(families), "budget": 20, "seeds": 1, "exclude": exclude}},
+        "model": {
+            "family": "auto",
+            "params": {"families": list(families), "budget": 20, "seeds": 1, "exclude": exclude},
+        },
         "seed": 0,
     }
     spec = validate_spec(raw, "<test>", tmp_path)
