@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from auto_small_data import fit_files, run_generated
+from auto_small_data import fit_series, run_generated
 from scipy import signal
 
 Series = dict[str, np.ndarray]
@@ -98,15 +98,8 @@ CASES: dict[str, Callable[[], tuple[Series, Series]]] = {
 DEFAULTS = ("narx", "esn", "arx")
 
 
-def _write(path: Path, series: Series) -> None:
-    np.savetxt(path, np.column_stack(list(series.values())), delimiter=",", header=",".join(series), comments="")
-
-
 def run_case(name: str, folder: Path, args) -> dict[str, Any]:
-    train, test = CASES[name]()
-    _write(folder / f"{name}-train.csv", train)
-    _write(folder / f"{name}-test.csv", test)
-    return fit_files(name, folder, args, {"train": 0.8, "validation": 0.2}, list(DEFAULTS))
+    return fit_series(name, folder, args, *CASES[name](), list(DEFAULTS))
 
 
 def main() -> None:

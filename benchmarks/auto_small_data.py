@@ -34,6 +34,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"
 SEALS = DATA / "pneumatic_seal_friction" / "friction"
@@ -243,6 +245,28 @@ def fit_files(name: str, folder: Path, args, split: dict[str, float], defaults: 
             fitted, _ = fit_timed({**base, "model": {"family": family}}, 1)
             row["defaults"][family] = fitted.metrics["test"]["nmse"]
     return row
+
+
+def fit_series(
+    name: str,
+    folder: Path,
+    args,
+    train: dict[str, np.ndarray],
+    test: dict[str, np.ndarray],
+    defaults: list[str],
+    split: dict[str, float] | None = None,
+) -> dict[str, Any]:
+    """:func:`fit_files` on ``train`` and ``test`` (column name -> values: u, y) written to ``folder`` as
+    ``<name>-train.csv`` and ``<name>-test.csv``; ``split`` of the training file (default 80 / 20)."""
+    for part, series in (("train", train), ("test", test)):
+        np.savetxt(
+            folder / f"{name}-{part}.csv",
+            np.column_stack(list(series.values())),
+            delimiter=",",
+            header=",".join(series),
+            comments="",
+        )
+    return fit_files(name, folder, args, split or {"train": 0.8, "validation": 0.2}, defaults)
 
 
 def run_generated(doc: str, cases: list[str], run_one, defaults: list[str], title: str, families: bool = True) -> None:

@@ -28,24 +28,27 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from auto_small_data import fit_files, run_generated
+from auto_small_data import fit_series, run_generated
 from scipy import signal
 
 Series = dict[str, np.ndarray]
 DEFAULTS = ("narx", "esn", "arx")
 
 
-def _noisy(y0: np.ndarray, rng: np.random.Generator, fraction: float = 0.01) -> np.ndarray:
-    return y0 + fraction * y0.std() * rng.standard_normal(len(y0))
+def _cut(
+    u: np.ndarray, y0: np.ndarray, rng: np.random.Generator, at: int, noise: float = 0.01
+) -> tuple[Series, Series]:
+    """The run (u, y0) measured with white output noise (``noise`` x the output's std): its first ``at`` samples
+    for training, the rest, noise-free, as the test."""
+    y = y0 + noise * y0.std() * rng.standard_normal(len(y0))
+    return {"u": u[:at], "y": y[:at]}, {"u": u[at:], "y": y0[at:]}
 
 
 def _deadtime(rng: np.random.Generator) -> tuple[Series, Series]:
     n, delay = 9000, 25
     u = np.repeat(rng.uniform(-2, 2, n // 60 + 1), 60)[:n] + 0.1 * rng.standard_normal(n)
     x = np.concatenate([np.zeros(delay), np.tanh(u)[: n - delay]])
-    y0 = signal.lfilter([0.03], [1, -0.97], x)
-    y = _noisy(y0, rng)
-    return {"u": u[:7000], "y": y[:7000]}, {"u": u[7000:], "y": y0[7000:]}
+    return _cut(u, signal.lfilter([0.03], [1, -0.97], x), rng, 7000)
 
 
 def _backlash(rng: np.random.Generator) -> tuple[Series, Series]:
@@ -54,9 +57,7 @@ def _backlash(rng: np.random.Generator) -> tuple[Series, Series]:
     z = np.zeros(n)
     for t in range(1, n):
         z[t] = min(max(z[t - 1], u[t] - half_width), u[t] + half_width)
-    y0 = signal.lfilter([0.1], [1, -0.9], z)
-    y = _noisy(y0, rng)
-    return {"u": u[:7000], "y": y[:7000]}, {"u": u[7000:], "y": y0[7000:]}
+    return _cut(u, signal.lfilter([0.1], [1, -0.9], z), rng, 7000)
 
 
 def _oversampled(rng: np.random.Generator) -> tuple[Series, Series]:
@@ -66,25 +67,20 @@ def _oversampled(rng: np.random.Generator) -> tuple[Series, Series]:
     for t in range(1, n):
         v[t] = v[t - 1] + dt * (u[t - 1] - 0.2 * v[t - 1] - q[t - 1] - q[t - 1] ** 3)
         q[t] = q[t - 1] + dt * v[t]
-    y = _noisy(q, rng, 0.005)
-    return {"u": u[:18000], "y": y[:18000]}, {"u": u[18000:], "y": q[18000:]}
+    return _cut(u, q, rng, 18000, 0.005)
 
 
 def _offset(rng: np.random.Generator) -> tuple[Series, Series]:
     n = 8000
     du = signal.lfilter(*signal.butter(2, 0.1), rng.standard_normal(n))
     y0 = 1e-6 * signal.lfilter([0, 0.2, 0.1], [1, -1.3, 0.5], du + 0.3 * du**2) + 3e-6
-    y = _noisy(y0, rng)
-    u = 1000 + 0.5 * du
-    return {"u": u[:6500], "y": y[:6500]}, {"u": u[6500:], "y": y0[6500:]}
+    return _cut(1000 + 0.5 * du, y0, rng, 6500)
 
 
 def _shortlin(rng: np.random.Generator) -> tuple[Series, Series]:
     n = 900
     u = rng.standard_normal(n)
-    y0 = signal.lfilter([0, 0.1, 0.05], [1, -1.7, 0.85], u)
-    y = _noisy(y0, rng, 1 / 30)
-    return {"u": u[:600], "y": y[:600]}, {"u": u[600:], "y": y0[600:]}
+    return _cut(u, signal.lfilter([0, 0.1, 0.05], [1, -1.7, 0.85], u), rng, 600, 1 / 30)
 
 
 CASES: dict[str, Callable[[], tuple[Series, Series]]] = {
@@ -96,15 +92,8 @@ CASES: dict[str, Callable[[], tuple[Series, Series]]] = {
 }
 
 
-def _write(path: Path, series: Series) -> None:
-    np.savetxt(path, np.column_stack(list(series.values())), delimiter=",", header=",".join(series), comments="")
-
-
 def run_case(name: str, folder: Path, args) -> dict[str, Any]:
-    train, test = CASES[name]()
-    _write(folder / f"{name}-train.csv", train)
-    _write(folder / f"{name}-test.csv", test)
-    return fit_files(name, folder, args, {"train": 0.8, "validation": 0.2}, list(DEFAULTS))
+    return fit_series(name, folder, args, *CASES[name](), list(DEFAULTS))
 
 
 def main() -> None:
