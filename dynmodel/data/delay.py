@@ -39,31 +39,47 @@ NA, NB = 2, 3
 
 def _losses(u: Sequence[np.ndarray], y: Sequence[np.ndarray], D: int) -> np.ndarray:
     """V(d), d = 0 .. D: the mean squared residual of the ARX model with delay d over the samples
-    t >= D + NB - 1 of every piece whose regressors are all finite (NaN where none are), and last, V_AR: that of
-    the model without the input."""
+    t >= D + NB - 1 of every piece (finite pieces only; NaN when none is long enough), and last, V_AR: that of
+    the model without the input. From the normal equations, their sums taken as dot products of shifted views
+    (no regressor matrix is built: six inputs and outputs on 50000 samples take about a second, not twenty)."""
     first = D + NB - 1
-    pieces = [(a, b) for a, b in zip(u, y) if len(a) > first + 10 * (NA + NB + 1)]
+    pieces = [
+        (a, b)
+        for a, b in zip(u, y)
+        if len(a) > first + 10 * (NA + NB + 1) and np.isfinite(a).all() and np.isfinite(b).all()
+    ]
     V = np.full(D + 2, np.nan)
     if not pieces:
         return V
-    target = np.concatenate([b[first:] for _, b in pieces])
-    past = np.column_stack(
-        [np.ones(len(target))]
-        + [np.concatenate([b[first - k : len(b) - k] for _, b in pieces]) for k in range(1, NA + 1)]
-    )
+    p, m = 1 + NA, 1 + NA + NB  # the columns without the input, and all of them
+    gram = np.zeros((D + 1, m, m))  # upper triangles
+    rhs = np.zeros((D + 1, m))
+    tt, count = 0.0, 0
+    for a, b in pieces:
+        n = len(b)
+        target = b[first:]
+        cols = [np.ones(n - first)] + [b[first - k : n - k] for k in range(1, NA + 1)]
+        taps = [a[first - s : n - s] for s in range(D + NB)]  # u[t - s], s = d + k
+        gram[:, :p, :p] += np.array([[x @ z for z in cols] for x in cols])
+        rhs[:, :p] += np.array([x @ target for x in cols])
+        cross = np.array([[x @ z for z in taps] for x in cols])  # (p, D + NB)
+        tap_rhs = np.array([z @ target for z in taps])
+        for k in range(NB):
+            gram[:, :p, p + k] += cross[:, k : k + D + 1].T
+            rhs[:, p + k] += tap_rhs[k : k + D + 1]
+            for j in range(k, NB):  # u[t-d-k] . u[t-d-j] for every d
+                gram[:, p + k, p + j] += [taps[d + k] @ taps[d + j] for d in range(D + 1)]
+        tt += float(target @ target)
+        count += len(target)
 
-    def residual(X: np.ndarray) -> float:
-        rows = np.isfinite(X).all(axis=1) & np.isfinite(target)  # a gap in the data drops the rows it reaches
-        if rows.sum() <= 10 * X.shape[1]:
-            return np.nan
-        X, t = X[rows], target[rows]
-        w = np.linalg.lstsq(X.T @ X, X.T @ t, rcond=None)[0]  # the normal equations: 6 columns, scaled
-        return float(np.mean((t - X @ w) ** 2))
+    def residual(g: np.ndarray, r: np.ndarray) -> float:
+        full = np.triu(g) + np.triu(g, 1).T
+        w = np.linalg.lstsq(full, r, rcond=None)[0]
+        return max(tt - float(w @ r), 0.0) / count
 
     for d in range(D + 1):
-        taps = [np.concatenate([a[first - d - k : len(a) - d - k] for a, _ in pieces]) for k in range(NB)]
-        V[d] = residual(np.column_stack([past, *taps]))
-    V[D + 1] = residual(past)
+        V[d] = residual(gram[d], rhs[d])
+    V[D + 1] = residual(gram[0, :p, :p], rhs[0, :p])
     return V
 
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from .. import registry
 from ..batch import run_specs
-from ..data.dataset import Dataset
+from ..data.dataset import Dataset, last_samples
 from ..data.delay import dead_times
 from ..data.derived import position_like
 from ..data.repeats import repeat_note, repeats_training
@@ -80,6 +80,8 @@ SURVIVOR_FACTOR = 3.0
 SECOND_CHANCES = 2
 #: candidates whose neighbours are measured
 GROW_FROM = 2
+#: training samples (the last ones) the inputs' dead times are read on: six inputs and outputs take 5 s on 50000
+DEAD_TIME_SAMPLES = 50000
 #: rounds of diagnose's moves, and moves measured per round
 MOVE_ROUNDS = 2
 MOVES = 4
@@ -282,8 +284,9 @@ def _positions(ds: Dataset) -> dict[str, float]:
 
 
 def _dead_times(ds: Dataset) -> dict[str, int]:
-    """The training inputs that act on an output only after a dead time, in samples."""
-    rows = ds.ranges.get("train", [])
+    """The training inputs that act on an output only after a dead time, in samples (read on the last
+    :data:`DEAD_TIME_SAMPLES` training samples: a fit per delay, input and output)."""
+    rows = last_samples(ds.ranges.get("train", []), DEAD_TIME_SAMPLES)
     if not rows:
         return {}
     u = [ds.recordings[rec].u[start:stop] for rec, start, stop in rows]
