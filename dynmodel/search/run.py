@@ -80,7 +80,7 @@ SURVIVOR_FACTOR = 3.0
 SECOND_CHANCES = 2
 #: candidates whose neighbours are measured
 GROW_FROM = 2
-#: training samples (the last ones) the inputs' dead times are read on: six inputs and outputs take 5 s on 50000
+#: training samples (the last ones) the inputs' dead times are read on (six inputs and outputs: about 1 s)
 DEAD_TIME_SAMPLES = 50000
 #: rounds of diagnose's moves, and moves measured per round
 MOVE_ROUNDS = 2
