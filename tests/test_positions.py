@@ -95,6 +95,9 @@ def test_the_narx_family_offers_its_default_with_direction_features_and_its_neig
     around = Found(replace(cand, params={}), Fitted(), {}, 1.0)
     grown = narx_search.neighbours(_ctx({"x": 0.01}), around)
     assert grown and all(c.data == {"derived_inputs": derived} for c in grown)
+    assert all(
+        c.summary.endswith(", with the direction and travel since the last reversal of x as inputs") for c in grown
+    )
 
 
 def test_the_search_context_names_the_position_and_not_the_noise_input(tmp_path):

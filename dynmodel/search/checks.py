@@ -56,7 +56,7 @@ OUTER_BAND = 2 * BAND
 BRIEF = 20
 #: ... and this fraction of the scored samples
 STRAY = 0.01
-#: samples a settled start holds a test recording's first input for (see the module docstring)
+#: samples a settled start holds a test recording's first input for, before its first sample
 SETTLE = 200
 
 
@@ -130,7 +130,8 @@ def _run(model: FittedModel, rec: Any, start: np.ndarray | None, settle: int = 0
 
 def band_checks(model: FittedModel, ds: Dataset) -> dict[str, Any]:
     """Per split: ``{"ok": bool, "start": how runs started, "sample": first sample outside the band or None,
-    "recording": its name}`` plus ``"ok"`` over all splits. Runs every recording once."""
+    "recording": its name}`` plus ``"ok"`` over all splits. Runs every recording once, and again settled where a
+    run from rest of a model that starts from measured outputs left the band (see the module docstring)."""
     lo, hi, width = band(ds)
     train_mean = np.nanmean(ds.concat_outputs("train"), axis=0)
     warm = model.warmup

@@ -128,7 +128,8 @@ def _output_error(ctx: SearchContext, L: int = 2) -> Candidate:
 def _after_dead_times(ctx: SearchContext, pool: int, terms: int) -> Candidate:
     """The default's pool with each input's lags starting at its dead time (``ctx.dead_times``): inputs d .. d + L,
     outputs 1 .. L, the degree chosen on validation. The default's lags 0 .. L (L <= 6) never reach an input
-    that acts 25 samples later (a generated plant: 0.80 % test NMSE; from the dead time, 0.15 %)."""
+    that acts 25 samples later (a generated plant: the NARX default 0.80 % test NMSE; the search, from this
+    candidate grown, 0.00042 %)."""
     L = _max_lag(ctx, 3, 600, 6)
     delays = {u: ctx.dead_times.get(u, 0) for u in _model_inputs(ctx)}
     table: dict[str, list[dict[str, int]]] = {u: [{"from": d, "to": d + L}] for u, d in delays.items()}
@@ -239,6 +240,18 @@ def _chosen(fitted: Any) -> tuple[dict[str, list[int]] | None, int | None, int |
     return table, degree, terms
 
 
+def _on_data(data: dict[str, Any]) -> str:
+    """A summary's note of a candidate's data-side extensions (what its lags name beyond the data's columns)."""
+    derived = data.get("derived_inputs") or []
+    moving = sorted({str(v) for item in derived for k, v in item.items() if k in ("direction", "since_reversal")})
+    parts = [f"direction and travel since the last reversal of {', '.join(moving)} as inputs"] if moving else []
+    if len(derived) > 2 * len(moving):
+        parts.append("derived inputs")
+    if data.get("delay_lines"):
+        parts.append("input delay lines")
+    return f", with the {' and '.join(parts)}" if parts else ""
+
+
 def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
     table, degree, terms = _chosen(found.fitted)
     if table is None or degree is None:
@@ -251,9 +264,10 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
     out = []
 
     data = found.candidate.data  # its data-side extensions (derived inputs): the lags name them
+    on = _on_data(data)
 
     def add(summary: str, params: dict[str, Any], pool: int, k: int, complexity: float | None = None) -> None:
-        out.append(_candidate(ctx, summary, params, pool, k, complexity=complexity, data=data))
+        out.append(_candidate(ctx, summary + on, params, pool, k, complexity=complexity, data=data))
 
     k = terms or 10
     fixed = {"lags": compact, "degree": degree, **base}
@@ -300,7 +314,7 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
             Candidate(
                 family=NAME,
                 params={**fixed, "selection": "free_run", "growth_window": GROWTH_WINDOW},
-                summary=f"degree {degree}, lags up to {L}, terms selected on the free-running error",
+                summary=f"degree {degree}, lags up to {L}, terms selected on the free-running error{on}",
                 cost="mse_inf",
                 data=data,
                 # every growth step re-estimates the weights on the free run (on the growth window), then once
