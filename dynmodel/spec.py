@@ -257,13 +257,20 @@ class ReversalChannel(StrictModel):
     name: Optional[str] = Field(None, description="channel name (default <input>_since_reversal)")
 
 
+class SignChannel(StrictModel):
+    """+1 where an input is above +deadband, -1 below -deadband, 0 between (a velocity's sign: Coulomb friction)."""
+
+    sign: str = Field(description="the input column")
+    deadband: float = Field(0.0, ge=0, description="|input| at most this counts as 0 (input units)")
+    name: Optional[str] = Field(None, description="channel name (default <input>_sign)")
+
+
+_DERIVED_KINDS = ("time", "direction", "since_reversal", "sign")
+
+
 def _derived_tag(value: Any) -> str | None:
-    keys = (
-        set(value)
-        if isinstance(value, dict)
-        else {k for k in ("time", "direction", "since_reversal") if getattr(value, k, None) is not None}
-    )
-    for key in ("time", "direction", "since_reversal"):
+    keys = set(value) if isinstance(value, dict) else {k for k in _DERIVED_KINDS if getattr(value, k, None) is not None}
+    for key in _DERIVED_KINDS:
         if key in keys:
             return key
     return None
@@ -274,12 +281,13 @@ DerivedInput = Annotated[
         Annotated[TimeChannel, Tag("time")],
         Annotated[DirectionChannel, Tag("direction")],
         Annotated[ReversalChannel, Tag("since_reversal")],
+        Annotated[SignChannel, Tag("sign")],
     ],
     Discriminator(
         _derived_tag,
         custom_error_type="derived_input",
         custom_error_message="write {time: linear}, {time: {saturating: TAU}}, "
-        "{direction: INPUT} or {since_reversal: INPUT}",
+        "{direction: INPUT}, {since_reversal: INPUT} or {sign: INPUT}",
     ),
 ]
 

@@ -8,6 +8,8 @@
   its value through standstill.
 * ``since_reversal``: s_t = u_t - u_r, the input's change since the extreme u_r at which the last
   reversal started (hysteresis loops of friction are shaped by it).
+* ``sign``: +1 where the input is above ``deadband``, -1 below ``-deadband``, 0 between: the sign of a
+  velocity, on which a Coulomb or LuGre force switches.
 
 Items are the JSON forms of the spec's ``derived_inputs`` (``{"time": "linear"}``,
 ``{"time": {"saturating": 30.0}}``, ``{"direction": "x", "deadband": 0.1}``, ...).
@@ -110,7 +112,7 @@ def position_like(pieces: Sequence[np.ndarray]) -> float | None:
 
 
 def kind(item: dict[str, Any]) -> str:
-    for key in ("time", "direction", "since_reversal"):
+    for key in ("time", "direction", "since_reversal", "sign"):
         if key in item and item[key] is not None:
             return key
     raise ValueError(f"unknown derived input {item!r}")
@@ -150,6 +152,10 @@ def compute(
         k = kind(item)
         if k == "time":
             out[:, j] = time_matrix([item["time"]], n, sampling_time)[:, 0]
+        elif k == "sign":
+            x = u[:, list(input_names).index(item[k])]
+            deadband = float(item.get("deadband") or 0.0)
+            out[:, j] = np.where(x > deadband, 1.0, np.where(x < -deadband, -1.0, 0.0))
         else:
             d, s = reversals(u[:, list(input_names).index(item[k])], float(item.get("deadband") or 0.0))
             out[:, j] = d if k == "direction" else s

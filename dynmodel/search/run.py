@@ -45,7 +45,7 @@ from .checks import failed_split
 from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
-from .space import Candidate, Found, SearchContext, candidates_of, estimated_work
+from .space import SIGNED, Candidate, Found, SearchContext, candidates_of, estimated_work
 from .views import (
     MIN_BLOCK,
     Layout,
@@ -266,8 +266,9 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         seeds=int(params.seeds),
         cost=written_cost,
         budget=float(params.budget),
-        positions=_positions(ds),
+        positions=(positions := _positions(ds)),
         dead_times=_dead_times(ds),
+        signed=_signed(ds, positions),
     )
     return ctx, Ranking(mode, folds, short, period or 0, repeated)
 
@@ -280,6 +281,17 @@ def _positions(ds: Dataset) -> dict[str, float]:
         deadband = position_like([p[:, j] for p in pieces])
         if deadband is not None:
             out[name] = float(f"{deadband:.3g}")
+    return out
+
+
+def _signed(ds: Dataset, positions: dict[str, float]) -> dict[str, float]:
+    """Of the inputs that move like a position, those that change sign (see :data:`.space.SIGNED`)."""
+    out = {}
+    for name, deadband in positions.items():
+        j = ds.input_names.index(name)
+        x = np.concatenate([ds.recordings[rec].u[a:b, j] for rec, a, b in ds.ranges.get("train", [])])
+        if min(np.mean(x > deadband), np.mean(x < -deadband)) >= SIGNED:
+            out[name] = deadband
     return out
 
 
@@ -963,6 +975,7 @@ class Search:
                 "small": self.ctx.small,
                 "positions": dict(self.ctx.positions),
                 "dead_times": dict(self.ctx.dead_times),
+                "signed": dict(self.ctx.signed),
             },
             "budget": self.budget.to_json(),
             "stages": self.stages,
@@ -1055,6 +1068,11 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         lines.append(
             f"inputs that move like a position: {', '.join(ctx.positions)} (the families may offer the direction of "
             "motion and the travel since the last reversal as inputs: friction, hysteresis)"
+        )
+    if ctx.signed:
+        lines.append(
+            f"of those, inputs that change sign: {', '.join(ctx.signed)} (a velocity: the families may offer its sign "
+            "as an input, on which a Coulomb or LuGre force switches)"
         )
     if ctx.dead_times:
         delays = ", ".join(f"{name} after {d} samples" for name, d in ctx.dead_times.items())

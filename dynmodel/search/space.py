@@ -23,6 +23,9 @@ from typing import Any
 
 from ..extensions import ExtensionContext, merge_patches
 
+#: an input that moves like a position changes sign when this fraction of its training samples lies beyond its
+#: deadband on each side of zero
+SIGNED = 0.1
 #: seconds of a fit on the reference machine, when a candidate gives no estimate: per training sample
 DEFAULT_WORK_PER_SAMPLE = 2e-4
 
@@ -58,6 +61,9 @@ class SearchContext:
     #: inputs that act on an output only after a dead time (:func:`dynmodel.data.delay.dead_times`), in samples:
     #: lags that start there reach the input's effect without a longer embedding
     dead_times: dict[str, int] = field(default_factory=dict)
+    #: of the :attr:`positions`, those that change sign (at least :data:`SIGNED` of the training samples beyond
+    #: their deadband on each side of zero): a velocity, whose sign a Coulomb or LuGre force switches on
+    signed: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_inputs(self) -> int:
@@ -78,6 +84,13 @@ class SearchContext:
             for name, deadband in self.positions.items()
             for kind in ("direction", "since_reversal")
         ]
+
+    def sign_inputs(self) -> list[dict[str, Any]]:
+        """``derived_inputs`` items for every input that moves smoothly and changes sign (:attr:`signed`): its
+        sign, with its deadband; [] when none does, or the spec derives inputs of its own."""
+        if self.data.get("derived_inputs"):
+            return []
+        return [{"sign": name, "deadband": deadband} for name, deadband in self.signed.items()]
 
     def allows_warmup(self, samples: int) -> bool:
         """May a run start from ``samples`` measured outputs under the protocol?"""

@@ -13,6 +13,8 @@ on the free run (``cost: mse_inf``). So the starting candidates vary what the de
 * for inputs that move like a position (``ctx.positions``), the default with their direction of motion and
   travel since the last reversal as inputs (``derived_inputs``, thesis 6.1-6.3: a Coulomb force is a
   direction times a level, a Dahl or LuGre force follows the travel since the last reversal);
+* for such inputs that change sign (``ctx.signed``: a velocity), the default with their sign as an input (a
+  Coulomb or LuGre force switches on it);
 * where an input acts only after a dead time (``ctx.dead_times``), the default's pool on lags that start there;
 * a second-order linear output-error model settled at its first input and unclipped (``initial: settled``,
   its terms chosen on validation, no output bounds, screened on the free run too): a run starts from rest at
@@ -201,6 +203,18 @@ def starting(ctx: SearchContext) -> list[Candidate]:
                 data={"derived_inputs": derived},
             )
         )
+    signs = ctx.sign_inputs()
+    if signs:
+        out.append(
+            _candidate(
+                ctx,
+                f"lags and degree chosen on validation, with the sign of {', '.join(ctx.signed)} as an input",
+                dict(zeros),
+                pool6,
+                expected_terms,
+                data={"derived_inputs": signs},
+            )
+        )
     if ctx.dead_times:
         out.append(_after_dead_times(ctx, pool6, expected_terms))
     if ctx.excursion <= 0.05 and not ctx.small:
@@ -244,8 +258,10 @@ def _on_data(data: dict[str, Any]) -> str:
     """A summary's note of a candidate's data-side extensions (what its lags name beyond the data's columns)."""
     derived = data.get("derived_inputs") or []
     moving = sorted({str(v) for item in derived for k, v in item.items() if k in ("direction", "since_reversal")})
+    signs = sorted({str(item["sign"]) for item in derived if "sign" in item})
     parts = [f"direction and travel since the last reversal of {', '.join(moving)} as inputs"] if moving else []
-    if len(derived) > 2 * len(moving):
+    parts += [f"sign of {', '.join(signs)} as an input"] if signs else []
+    if len(derived) > 2 * len(moving) + len(signs):
         parts.append("derived inputs")
     if data.get("delay_lines"):
         parts.append("input delay lines")
