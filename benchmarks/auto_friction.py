@@ -1,6 +1,6 @@
 """family: auto on the friction generators, next to the narx and esn defaults.
 
-    python benchmarks/auto_friction.py                    # every case (about 3 min on 2 cores)
+    python benchmarks/auto_friction.py                    # every case (about 6 min on 2 cores)
     python benchmarks/auto_friction.py --only dahl --no-defaults
 
 Each case is a cross-prediction position -> force (thesis 6.2 - 6.3) from ``dynmodel generate`` with the
@@ -10,7 +10,9 @@ test recording seed 2, another random trajectory (docs/friction.md):
 * ``dahl``, ``lugre``, ``gms``: the friction laws along a random micrometre trajectory, 12000 samples at
   250 Hz (pre-sliding hysteresis and sliding);
 * ``plant``: the control force of the P-controlled friction plant (6.4.2) from its position, 20000 samples
-  at 1 kHz.
+  at 1 kHz;
+* ``lugre-velocity``: the ``lugre`` case driven by its sliding velocity (the position differentiated, as a
+  tribometer that logs the velocity gives it): velocity -> force.
 
 Printed per case: the test NMSE (%) of ``family: auto`` (default budget) and of the narx and esn defaults,
 the model auto chose and its wall time. Asserts nothing; the data come from fixed seeds.
@@ -25,7 +27,15 @@ import numpy as np
 from auto_small_data import fit_files, run_generated
 
 DEFAULTS = ("narx", "esn")
-CASES = {"dahl": ("dahl", 12000), "lugre": ("lugre", 12000), "gms": ("gms", 12000), "plant": ("friction-plant", 20000)}
+CASES = {
+    "dahl": ("dahl", 12000),
+    "lugre": ("lugre", 12000),
+    "gms": ("gms", 12000),
+    "plant": ("friction-plant", 20000),
+    "lugre-velocity": ("lugre", 12000),
+}
+#: the generators' sampling rate for the friction laws (Hz): a velocity in units per second
+RATE = 250.0
 
 
 def generate(generator: str, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -42,6 +52,8 @@ def run_case(name: str, folder: Path, args) -> dict[str, Any]:
     generator, n = CASES[name]
     for part, seed in (("train", 1), ("test", 2)):
         u, y = generate(generator, n, seed)
+        if name.endswith("-velocity"):
+            u = np.gradient(u) * RATE
         np.savetxt(folder / f"{name}-{part}.csv", np.column_stack([u, y]), delimiter=",", header="u,y", comments="")
     return fit_files(name, folder, args, {"train": 0.8, "validation": 0.2}, list(DEFAULTS))
 
