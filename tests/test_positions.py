@@ -175,7 +175,8 @@ def test_the_sign_of_an_input_as_a_derived_channel(tmp_path):
         "model": {"family": "narx"},
     }
     raw["data"]["derived_inputs"] = [{"sign": "position", "deadband": 0.0}]
-    raw["model"]["params"] = {"lags": {"position": [0], "position_sign": [0], "force": [1]}, "degree": 1}
+    lags = {"position": [0], "position_sign": [0], "force": [1]}
+    raw["model"]["params"] = {"lags": lags, "degree": 1, "max_terms": 4, "patience": None}  # every term kept
     spec = validate_spec(raw, "<test>", tmp_path)
     model, _ = engine.fit_dataset(spec, load_dataset(spec), no_progress)
     assert {r.name for r in model.family.embedding_.regressors} == {"position", "position_sign", "force"}

@@ -5,8 +5,8 @@ from d, and a constant),
 
     y[t] = c + a1 y[t-1] + a2 y[t-2] + b0 u[t-d] + b1 u[t-d-1] + b2 u[t-d-2] + e[t],
 
-is fitted by least squares for every d in 0 .. D on the same samples (less those a gap in the data reaches),
-and the delay whose one-step mean squared residual V(d) is the lowest is that pair's dead time (the criterion
+is fitted by least squares for every d in 0 .. D on the same samples (pieces with a missing sample left out:
+the data loader refuses those anyway), and the delay whose one-step mean squared residual V(d) is the lowest is that pair's dead time (the criterion
 of Ljung's ``delayest``). The input acts on that output when its best model leaves at most (1 - :data:`GAIN`)
 of the residual of the model without it (V_AR), and it acts after that dead time when its best model also
 leaves at most (1 - GAIN) of V(0); otherwise at once (0). An input's dead time is the shortest over the
@@ -84,8 +84,8 @@ def _losses(u: Sequence[np.ndarray], y: Sequence[np.ndarray], D: int) -> np.ndar
 
 
 def dead_time(u: Sequence[np.ndarray], y: Sequence[np.ndarray]) -> int | None:
-    """The dead time (samples) of input ``u`` on output ``y`` (pieces of the same recordings, 1-D each, NaN
-    for missing samples): 0 when the input acts at once (no delay counts, see the module docstring); None when
+    """The dead time (samples) of input ``u`` on output ``y`` (pieces of the same recordings, 1-D each; a piece
+    with NaN is left out): 0 when the input acts at once (no delay counts, see the module docstring); None when
     it barely acts on that output, or the pieces are too short to tell."""
     longest = max((len(a) for a in u), default=0)
     D = min(MAX_DELAY, longest // 4)

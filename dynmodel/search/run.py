@@ -253,6 +253,7 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         n_train, n_val = n_train + n_val - (n_train + n_val) // folds, (n_train + n_val) // folds
     folds = {"recordings": left_out, "holdout": 0}.get(mode, folds)
     data = dict(spec.resolved()["data"])
+    positions = _positions(ds)
     ctx = SearchContext(
         input_names=tuple(ds.input_names),
         output_names=tuple(ds.output_names),
@@ -266,7 +267,7 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         seeds=int(params.seeds),
         cost=written_cost,
         budget=float(params.budget),
-        positions=(positions := _positions(ds)),
+        positions=positions,
         dead_times=_dead_times(ds),
         signed=_signed(ds, positions),
     )

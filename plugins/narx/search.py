@@ -190,31 +190,18 @@ def starting(ctx: SearchContext) -> list[Candidate]:
         )
     )
     out.append(_output_error(ctx))
-    derived = ctx.direction_inputs()
-    if derived:
-        out.append(
-            _candidate(
-                ctx,
-                f"lags and degree chosen on validation, direction and travel since the last reversal of "
-                f"{', '.join(ctx.positions)} as inputs",
-                dict(zeros),
-                pool6,
-                expected_terms,
-                data={"derived_inputs": derived},
+    for derived in (ctx.direction_inputs(), ctx.sign_inputs()):  # friction: what the force switches or relaxes on
+        if derived:
+            out.append(
+                _candidate(
+                    ctx,
+                    "lags and degree chosen on validation" + _on_data({"derived_inputs": derived}),
+                    dict(zeros),
+                    pool6,
+                    expected_terms,
+                    data={"derived_inputs": derived},
+                )
             )
-        )
-    signs = ctx.sign_inputs()
-    if signs:
-        out.append(
-            _candidate(
-                ctx,
-                f"lags and degree chosen on validation, with the sign of {', '.join(ctx.signed)} as an input",
-                dict(zeros),
-                pool6,
-                expected_terms,
-                data={"derived_inputs": signs},
-            )
-        )
     if ctx.dead_times:
         out.append(_after_dead_times(ctx, pool6, expected_terms))
     if ctx.excursion <= 0.05 and not ctx.small:
