@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from auto_small_data import fit_files, run_generated
+from auto_small_data import fit_series, run_generated
 
 DEFAULTS = ("narx", "esn")
 CASES = {
@@ -50,12 +50,11 @@ def generate(generator: str, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]
 
 def run_case(name: str, folder: Path, args) -> dict[str, Any]:
     generator, n = CASES[name]
-    for part, seed in (("train", 1), ("test", 2)):
+    runs = []
+    for seed in (1, 2):  # training and validation, then the test
         u, y = generate(generator, n, seed)
-        if name.endswith("-velocity"):
-            u = np.gradient(u) * RATE
-        np.savetxt(folder / f"{name}-{part}.csv", np.column_stack([u, y]), delimiter=",", header="u,y", comments="")
-    return fit_files(name, folder, args, {"train": 0.8, "validation": 0.2}, list(DEFAULTS))
+        runs.append({"u": np.gradient(u) * RATE if name.endswith("-velocity") else u, "y": y})
+    return fit_series(name, folder, args, *runs, list(DEFAULTS))
 
 
 def main() -> None:

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from auto_small_data import fit_files, run_generated
+from auto_small_data import fit_series, run_generated
 
 PERIOD = 2000
 PERIODS = 6
@@ -100,15 +100,10 @@ def generate(kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
     return u, y, ut[2 * PERIOD :], yt
 
 
-def _write(path: Path, u: np.ndarray, y: np.ndarray) -> None:
-    np.savetxt(path, np.column_stack([u, y]), delimiter=",", header="u,y", comments="")
-
-
 def run_case(name: str, folder: Path, args) -> dict[str, Any]:
     u, y, ut, yt = generate(name)
-    _write(folder / f"{name}-train.csv", u, y)
-    _write(folder / f"{name}-test.csv", ut, yt)
-    return fit_files(name, folder, args, {"train": 5 / 6, "validation": 1 / 6}, list(DEFAULTS))
+    split = {"train": 5 / 6, "validation": 1 / 6}
+    return fit_series(name, folder, args, {"u": u, "y": y}, {"u": ut, "y": yt}, list(DEFAULTS), split)
 
 
 def main() -> None:

@@ -265,12 +265,13 @@ class SignChannel(StrictModel):
     name: Optional[str] = Field(None, description="channel name (default <input>_sign)")
 
 
-_DERIVED_KINDS = ("time", "direction", "since_reversal", "sign")
+#: the kinds of a derived input, as the key of its spec item
+DERIVED_KINDS = ("time", "direction", "since_reversal", "sign")
 
 
 def _derived_tag(value: Any) -> str | None:
-    keys = set(value) if isinstance(value, dict) else {k for k in _DERIVED_KINDS if getattr(value, k, None) is not None}
-    for key in _DERIVED_KINDS:
+    keys = set(value) if isinstance(value, dict) else {k for k in DERIVED_KINDS if getattr(value, k, None) is not None}
+    for key in DERIVED_KINDS:
         if key in keys:
             return key
     return None

@@ -23,6 +23,8 @@ from typing import Any
 import numba
 import numpy as np
 
+from ..spec import DERIVED_KINDS
+
 
 def time_function_name(fn: Any) -> str:
     """'linear' or 'saturating_<tau>' for a time function given as in the spec."""
@@ -112,7 +114,7 @@ def position_like(pieces: Sequence[np.ndarray]) -> float | None:
 
 
 def kind(item: dict[str, Any]) -> str:
-    for key in ("time", "direction", "since_reversal", "sign"):
+    for key in DERIVED_KINDS:
         if key in item and item[key] is not None:
             return key
     raise ValueError(f"unknown derived input {item!r}")
@@ -152,11 +154,12 @@ def compute(
         k = kind(item)
         if k == "time":
             out[:, j] = time_matrix([item["time"]], n, sampling_time)[:, 0]
-        elif k == "sign":
-            x = u[:, list(input_names).index(item[k])]
-            deadband = float(item.get("deadband") or 0.0)
-            out[:, j] = np.where(x > deadband, 1.0, np.where(x < -deadband, -1.0, 0.0))
+            continue
+        x = u[:, list(input_names).index(item[k])]
+        deadband = float(item.get("deadband") or 0.0)
+        if k == "sign":
+            out[:, j] = np.sign(x) * (np.abs(x) > deadband)
         else:
-            d, s = reversals(u[:, list(input_names).index(item[k])], float(item.get("deadband") or 0.0))
+            d, s = reversals(x, deadband)
             out[:, j] = d if k == "direction" else s
     return out

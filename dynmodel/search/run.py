@@ -253,7 +253,8 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         n_train, n_val = n_train + n_val - (n_train + n_val) // folds, (n_train + n_val) // folds
     folds = {"recordings": left_out, "holdout": 0}.get(mode, folds)
     data = dict(spec.resolved()["data"])
-    positions = _positions(ds)
+    pieces = [ds.recordings[rec].u[a:b] for rec, a, b in ds.ranges.get("train", [])]
+    positions = _positions(pieces, ds.input_names)
     ctx = SearchContext(
         input_names=tuple(ds.input_names),
         output_names=tuple(ds.output_names),
@@ -269,31 +270,33 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         budget=float(params.budget),
         positions=positions,
         dead_times=_dead_times(ds),
-        signed=_signed(ds, positions),
+        signed=_signed(pieces, ds.input_names, positions),
     )
     return ctx, Ranking(mode, folds, short, period or 0, repeated)
 
 
-def _positions(ds: Dataset) -> dict[str, float]:
-    """The training inputs that move like a position, with the deadband of their reversals."""
-    pieces = [ds.recordings[rec].u[start:stop] for rec, start, stop in ds.ranges.get("train", [])]
+def _positions(pieces: list[np.ndarray], names: list[str]) -> dict[str, float]:
+    """The inputs (columns ``names`` of the training ``pieces``) that move like a position, with the deadband
+    of their reversals."""
     out = {}
-    for j, name in enumerate(ds.input_names):
+    for j, name in enumerate(names):
         deadband = position_like([p[:, j] for p in pieces])
         if deadband is not None:
             out[name] = float(f"{deadband:.3g}")
     return out
 
 
-def _signed(ds: Dataset, positions: dict[str, float]) -> dict[str, float]:
-    """Of the inputs that move like a position, those that change sign (see :data:`.space.SIGNED`)."""
-    out = {}
+def _signed(pieces: list[np.ndarray], names: list[str], positions: dict[str, float]) -> tuple[str, ...]:
+    """The ``positions`` that change sign in the training ``pieces`` (see :data:`.space.SIGNED`)."""
+    if not positions:
+        return ()
+    u = np.concatenate(pieces)
+    out = []
     for name, deadband in positions.items():
-        j = ds.input_names.index(name)
-        x = np.concatenate([ds.recordings[rec].u[a:b, j] for rec, a, b in ds.ranges.get("train", [])])
+        x = u[:, names.index(name)]
         if min(np.mean(x > deadband), np.mean(x < -deadband)) >= SIGNED:
-            out[name] = deadband
-    return out
+            out.append(name)
+    return tuple(out)
 
 
 def _dead_times(ds: Dataset) -> dict[str, int]:
@@ -976,7 +979,7 @@ class Search:
                 "small": self.ctx.small,
                 "positions": dict(self.ctx.positions),
                 "dead_times": dict(self.ctx.dead_times),
-                "signed": dict(self.ctx.signed),
+                "signed": list(self.ctx.signed),
             },
             "budget": self.budget.to_json(),
             "stages": self.stages,

@@ -61,9 +61,9 @@ class SearchContext:
     #: inputs that act on an output only after a dead time (:func:`dynmodel.data.delay.dead_times`), in samples:
     #: lags that start there reach the input's effect without a longer embedding
     dead_times: dict[str, int] = field(default_factory=dict)
-    #: of the :attr:`positions`, those that change sign (at least :data:`SIGNED` of the training samples beyond
-    #: their deadband on each side of zero): a velocity, whose sign a Coulomb or LuGre force switches on
-    signed: dict[str, float] = field(default_factory=dict)
+    #: the :attr:`positions` that change sign (at least :data:`SIGNED` of the training samples beyond their
+    #: deadband on each side of zero): a velocity, whose sign a Coulomb or LuGre force switches on
+    signed: tuple[str, ...] = ()
 
     @property
     def n_inputs(self) -> int:
@@ -87,10 +87,10 @@ class SearchContext:
 
     def sign_inputs(self) -> list[dict[str, Any]]:
         """``derived_inputs`` items for every input that moves smoothly and changes sign (:attr:`signed`): its
-        sign, with its deadband; [] when none does, or the spec derives inputs of its own."""
+        sign, with its reversal deadband; [] when none does, or the spec derives inputs of its own."""
         if self.data.get("derived_inputs"):
             return []
-        return [{"sign": name, "deadband": deadband} for name, deadband in self.signed.items()]
+        return [{"sign": name, "deadband": self.positions[name]} for name in self.signed]
 
     def allows_warmup(self, samples: int) -> bool:
         """May a run start from ``samples`` measured outputs under the protocol?"""
