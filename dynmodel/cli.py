@@ -241,7 +241,7 @@ def validate(
     result = validate_spec_file(spec)
     s, ds, plan = result.spec, result.dataset, result.plan
     out.print(
-        f"[green]ok[/]: {spec} ({s.model.family}, cost {s.cost or 'per family'}, {len(ds.recordings)} recording(s), "
+        f"[green]ok[/]: {spec} ({s.model.family}, cost {s.cost or 'per family'}, {ds.n_loaded} recording(s), "
         f"inputs {ds.input_names}, outputs {ds.output_names}, sampling time {ds.sampling_time:g})"
     )
     table = Table()

@@ -811,6 +811,40 @@ def test_several_recordings_are_each_left_out_in_turn(tmp_path):
     assert model.metrics["validation"]["nmse"] < 0.5  # the winner, refitted on the spec's own splits
 
 
+def test_a_validation_window_does_not_multiply_the_recordings(tmp_path):
+    """A validation split with an initialization window is a run of its own of the same recording (the CED
+    benchmark's layout: two sequences, each split, a window of 4). Two recordings stay two, ranked by blocked
+    cross-validation, not left out in turn as four; three are left out whole, each with its validation run."""
+    raw, _ = _three_recordings(tmp_path, budget=1)
+    raw["data"]["init_window"] = 10
+    two = {**raw, "data": {**raw["data"], "path": raw["data"]["path"][:2]}}
+    ds2 = load_dataset(validate_spec(two, "<test>", tmp_path))
+    assert len(ds2.recordings) == 4 and ds2.n_loaded == 2  # each validation range a run of its own
+    assert possible_recording_folds(ds2) == 0
+    ds3 = load_dataset(validate_spec(raw, "<test>", tmp_path))
+    assert possible_recording_folds(ds3) == 3 and ds3.n_loaded == 3
+    for i in range(3):
+        v = view(ds3, Layout("recording", fold=i, folds=3))
+        held = {v.recordings[r].name.split("[")[0] for r, _, _ in v.ranges["validation"]}
+        trained = {v.recordings[r].name.split("[")[0] for r, _, _ in v.ranges["train"]}
+        assert held == {f"run{i}.csv"} and f"run{i}.csv" not in trained
+        assert sum(b - a for _, a, b in v.ranges["validation"]) == 900  # its training and validation samples
+
+
+def test_narx_plans_its_work_for_every_output():
+    """The planned work of a NARX candidate grows with the outputs: terms are chosen and re-estimated for each
+    (measured on one input and three accelerations: one output 0.67 s, three 8.2 s; planned per output alone,
+    a three-output search planned for 300 s took 800 s)."""
+    from dynmodel.search.space import SearchContext
+    from dynmodel_plugins.narx.search import _work
+
+    one = SearchContext(("u",), ("y1",), 1.0, 20000, 5000, {})
+    three = SearchContext(("u",), ("y1", "y2", "y3"), 1.0, 20000, 5000, {})
+    (full1, screen1), (full3, screen3) = _work(one, 60, 20), _work(three, 60, 20)
+    assert full3 - screen3 == pytest.approx(3 * (full1 - screen1))
+    assert screen3 - 0.05 == pytest.approx(3 * (screen1 - 0.05))
+
+
 def test_long_recordings_left_out_in_turn_are_screened_on_part_of_the_others(tmp_path, monkeypatch):
     """Left out in turn, every screening fit trained on all the other recordings (on three recordings of 50000
     samples, screening alone took 520 s of a 300 s budget); long ones are screened on the last samples of

@@ -89,6 +89,10 @@ class Recording:
     #: the source's own column names (a separate test file may name its columns differently)
     input_columns: list[str] | None = None
     output_columns: list[str] | None = None
+    #: index (in the dataset as loaded) of the recording this run was cut from to start a free run of its
+    #: own (:func:`own_runs`: a validation or test range with an initialization window); None for a recording
+    #: of its own. The search leaves out a recording with the runs cut from it (``search.views``).
+    origin: int | None = None
 
     @property
     def n(self) -> int:
@@ -163,6 +167,11 @@ class Dataset:
                 h.update(np.ascontiguousarray(r.u[start:stop]).tobytes())
                 h.update(np.ascontiguousarray(r.y[start:stop]).tobytes())
         return h.hexdigest()
+
+    @property
+    def n_loaded(self) -> int:
+        """The recordings as read or generated (runs cut from them to start on their own not counted)."""
+        return sum(r.origin is None for r in self.recordings)
 
     def concat_inputs(self, split: str) -> tuple[np.ndarray, np.ndarray]:
         """Inputs of ``split`` concatenated, and the lengths of the pieces."""
@@ -567,8 +576,16 @@ def own_runs(recordings: list[Recording], ranges: dict[str, list[Range]], keys: 
         for rec, a, b in ranges.get(key, []):
             if a > 0:
                 r = recordings[rec]
+                root = rec if r.origin is None else r.origin
                 recordings.append(
-                    replace(r, name=f"{r.name}[{a}:{b}]", u=r.u[a:b].copy(), y=r.y[a:b].copy(), offset=r.offset + a)
+                    replace(
+                        r,
+                        name=f"{r.name}[{a}:{b}]",
+                        u=r.u[a:b].copy(),
+                        y=r.y[a:b].copy(),
+                        offset=r.offset + a,
+                        origin=root,
+                    )
                 )
                 moved.append((len(recordings) - 1, 0, b - a))
             else:

@@ -46,7 +46,10 @@ NAME = "narx"
 _SCREEN_COST = 1e-7
 #: seconds per training sample and squared term of the free-running re-estimation (/ 40 iterations): measured on
 #: the full fits of the Silverbox and Bouc-Wen searches with the blocked-QR Levenberg-Marquardt (124 and 128 s
-#: where 2.5e-8, the figure with MINPACK's QR, planned 376 s; 33 and 37 s where it planned 158 s)
+#: where 2.5e-8, the figure with MINPACK's QR, planned 376 s; 33 and 37 s where it planned 158 s). Per output:
+#: one input, three accelerations (24000 samples, a linear model on lags 0..4), one output 0.67 s, two 3.6 s,
+#: three 8.2 s, about the number of outputs times the squared terms per output (which grow with the lags of
+#: every output); without the factor a three-output search planned for 300 s took 800 s)
 _REFINE_COST = 8e-9
 
 
@@ -70,10 +73,12 @@ def _initial(ctx: SearchContext, L: int) -> dict[str, Any]:
 
 
 def _work(ctx: SearchContext, pool: int, terms: int, samples: int | None = None) -> tuple[float, float]:
-    """(full, screening) seconds of one fit on ``samples`` (default ctx.n_train) training samples."""
+    """(full, screening) seconds of one fit on ``samples`` (default ctx.n_train) training samples: the terms
+    are chosen and re-estimated for every output (``terms`` each), so both grow with the number of outputs."""
     n = max(ctx.n_train if samples is None else samples, 1)
-    screen = 0.05 + _SCREEN_COST * n * pool * (1 + n / 50000)
-    refine = _REFINE_COST * n * terms * terms * 40
+    q = max(ctx.n_outputs, 1)
+    screen = 0.05 + _SCREEN_COST * q * n * pool * (1 + n / 50000)
+    refine = _REFINE_COST * q * n * terms * terms * 40
     return screen + refine, screen
 
 
