@@ -829,6 +829,16 @@ def test_a_validation_window_does_not_multiply_the_recordings(tmp_path):
         trained = {v.recordings[r].name.split("[")[0] for r, _, _ in v.ranges["train"]}
         assert held == {f"run{i}.csv"} and f"run{i}.csv" not in trained
         assert sum(b - a for _, a, b in v.ranges["validation"]) == 900  # its training and validation samples
+    # the benchmark source itself: CED's two training recordings with a validation split carved from each
+    from benchmark_files import write as write_benchmark
+
+    ced = {
+        "benchmark": "ced",
+        "root": str(write_benchmark("ced", tmp_path / "ced")),
+        "split": {"train": 0.8, "validation": 0.2},
+    }
+    ds_ced = load_dataset(validate_spec({**raw, "data": ced}, "<test>", tmp_path))
+    assert possible_recording_folds(ds_ced) == 0 and possible_folds(ds_ced, 5) > 0
 
 
 def test_narx_plans_its_work_for_every_output():
