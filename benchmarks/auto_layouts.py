@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from auto_small_data import fit_timed, run_generated
+from auto_small_data import fit_files, run_generated
 from scipy import signal
 
 Series = dict[str, np.ndarray]
@@ -127,31 +127,15 @@ def _write(folder: Path, name: str, runs: list[Series]) -> list[str]:
 def run_case(name: str, folder: Path, args) -> dict[str, Any]:
     train, test = CASES[name]()
     columns = list(train[0])
+    split = {"train": 0.8, "validation": 0.2}
     data = {
         "path": _write(folder, f"{name}-train", train),
         "input": [c for c in columns if c.startswith("u")],
         "output": [c for c in columns if c.startswith("y")],
-        "split": {"train": 0.8, "validation": 0.2},
+        "split": split,
         "test": {"path": _write(folder, f"{name}-test", test)},
     }
-    base = {"name": name, "data": data, "seed": 0}
-    params = {} if args.budget is None else {"budget": args.budget}
-    model, seconds = fit_timed({**base, "model": {"family": "auto", "params": params}}, args.workers)
-    search = model.search or {}
-    row: dict[str, Any] = {
-        "case": name,
-        "auto": model.metrics["test"]["nmse"],
-        "seconds": seconds,
-        "chosen": search.get("winner_summary") or model.family.name,
-        "mode": search.get("mode"),
-        "planned": (search.get("budget") or {}).get("planned"),
-        "defaults": {},
-    }
-    if not args.no_defaults:
-        for family in DEFAULTS:
-            fitted, _ = fit_timed({**base, "model": {"family": family}}, 1)
-            row["defaults"][family] = fitted.metrics["test"]["nmse"]
-    return row
+    return fit_files(name, folder, args, split, list(DEFAULTS), data)
 
 
 def main() -> None:

@@ -206,23 +206,27 @@ def main() -> None:
     print_table(results, list(DEFAULTS), f"test NMSE % ({layout})")
 
 
-def fit_files(name: str, folder: Path, args, split: dict[str, float], defaults: list[str]) -> dict[str, Any]:
+def fit_files(
+    name: str,
+    folder: Path,
+    args,
+    split: dict[str, float],
+    defaults: list[str],
+    data: dict[str, Any] | None = None,
+) -> dict[str, Any]:
     """``family: auto`` (with the command line's budget and families) and each installed default of ``defaults``
-    fitted on ``folder/<name>-train.csv`` (columns u, y; ``split``) and tested on ``folder/<name>-test.csv``: one
-    row of figures for :func:`print_table`."""
+    fitted on ``folder/<name>-train.csv`` (columns u, y; ``split``) and tested on ``folder/<name>-test.csv``, or
+    on the spec's data section ``data`` when given: one row of figures for :func:`print_table`."""
     from dynmodel.registry import families
 
-    base = {
-        "name": name,
-        "data": {
-            "path": str(folder / f"{name}-train.csv"),
-            "input": ["u"],
-            "output": ["y"],
-            "split": split,
-            "test": {"path": str(folder / f"{name}-test.csv")},
-        },
-        "seed": 0,
+    data = data or {
+        "path": str(folder / f"{name}-train.csv"),
+        "input": ["u"],
+        "output": ["y"],
+        "split": split,
+        "test": {"path": str(folder / f"{name}-test.csv")},
     }
+    base = {"name": name, "data": data, "seed": 0}
     params: dict[str, Any] = {}
     if args.budget is not None:
         params["budget"] = args.budget
