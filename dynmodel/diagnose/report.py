@@ -187,7 +187,7 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
     else:
         lines += ["**Adequate**: no cause is significant; nothing is proposed.", ""]
     lines += [
-        f"Model `{spec.model.family}`, cost `{spec.cost}`, {len(base.ds.recordings)} recording(s), inputs "
+        f"Model `{spec.model.family}`, cost `{spec.cost}`, {base.ds.n_loaded} recording(s), inputs "
         f"{base.model.input_names}, output {base.model.output_names}, sampling time {base.ds.sampling_time:g} s; "
         f"model memory {memory if memory is not None else '–'} samples. Diagnosis took {result.seconds:.1f} s.",
         "",
