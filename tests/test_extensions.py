@@ -76,6 +76,15 @@ def test_narx_offers_a_higher_degree_and_output_terms_for_an_output_nonlinearity
     assert switch and switch[0].patch["model"]["family"] == "esn"
 
 
+def test_narx_with_linear_inputs_offers_input_monomials_for_a_static_nonlinearity(tmp_path):
+    """A model whose inputs enter linearly (input_terms: linear) cannot form a static input nonlinearity at any
+    degree: the family offers every monomial of its inputs first; one that has them is offered degrees only."""
+    linear = family_extensions("static-nonlinearity", _context(_raw("narx", {"input_terms": "linear"}), tmp_path))
+    assert linear[0].patch["model"]["params"] == {"input_terms": "any"}
+    full = family_extensions("static-nonlinearity", _context(_raw("narx"), tmp_path))
+    assert full and all("input_terms" not in p.patch["model"]["params"] for p in full)
+
+
 def test_narx_lag_order_proposal_follows_the_evidence_and_stays_in_the_pool(tmp_path):
     ctx = _context(_raw("narx", {"degree": 3}), tmp_path, evidence={"order": 30})
     (lags,) = [p for p in family_extensions("missing-dynamics", ctx) if "longer lags" in p.summary]

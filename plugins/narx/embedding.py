@@ -73,23 +73,34 @@ class Embedding:
     def label_of(self, exponents: np.ndarray) -> str:
         return term_label(exponents, [r.label for r in self.regressors])
 
+    @property
+    def inputs(self) -> np.ndarray:
+        """Which regressors are inputs (bool, per regressor)."""
+        return np.array([r.source == INPUT for r in self.regressors], dtype=bool)
+
 
 def _lag_error(name: str, what: str) -> ValueError:
     return ValueError(f"lags.{name}: {what}")
 
 
 def default_lag_table(
-    input_names: list[str], output_names: list[str], degree: int, constant: bool = True
+    input_names: list[str],
+    output_names: list[str],
+    degree: int,
+    constant: bool = True,
+    linear_inputs: bool = False,
 ) -> dict[str, list[int]]:
     """The default embedding: inputs at 0 .. L and outputs at 1 .. L (eq. 3.5 / 3.6), L the largest
     of ``DEFAULT_MAX_LAG`` .. 1 whose pool of degree ``degree`` holds at most ``DEFAULT_POOL``
     monomials (the Gram matrix costs N K^2; FOS then keeps the lags that matter). One input and
     one output at degree 3: L = 6 (13 regressors, 560 monomials), the embedding that models
-    Silverbox and Bouc-Wen best; two inputs: L = 3; degree 5: L = 2 (the thesis's 3.2.4 pool)."""
+    Silverbox and Bouc-Wen best; two inputs: L = 3; degree 5: L = 2 (the thesis's 3.2.4 pool).
+    ``linear_inputs``: the inputs enter only as linear terms (``input_terms: linear``), a smaller pool."""
     n_in, n_out = len(input_names), len(output_names)
     L = 1
     for lag in range(DEFAULT_MAX_LAG, 0, -1):
-        if pool_size(n_in * (lag + 1) + n_out * lag, degree, constant) <= DEFAULT_POOL:
+        n_lin = n_in * (lag + 1) if linear_inputs else 0
+        if pool_size(n_in * (lag + 1) + n_out * lag, degree, constant, n_lin) <= DEFAULT_POOL:
             L = lag
             break
     table = {n: list(range(0, L + 1)) for n in input_names}
@@ -104,12 +115,14 @@ def build_embedding(
     extra: Sequence[tuple[str, int]] = (),
     degree: int = 3,
     constant: bool = True,
+    linear_inputs: bool = False,
 ) -> Embedding:
     """Regressors from ``{column: [lags]}`` (None: :func:`default_lag_table` for this ``degree``)
     plus the (column, lag) pairs in ``extra`` (from explicit terms)."""
     table: dict[str, set[int]]
     if lags is None:
-        table = {n: set(v) for n, v in default_lag_table(input_names, output_names, degree, constant).items()}
+        default = default_lag_table(input_names, output_names, degree, constant, linear_inputs)
+        table = {n: set(v) for n, v in default.items()}
     else:
         table = {n: set(v) for n, v in lags.items()}
     for name, lag in extra:
@@ -175,16 +188,22 @@ def exponents_of(terms: list[str], emb: Embedding) -> np.ndarray:
 # ---------------------------------------------------------------- the pool
 
 
-def pool_size(n_regressors: int, degree: int, constant: bool) -> int:
-    """Number of monomials of total degree 1..degree in n variables, plus the constant."""
-    return math.comb(n_regressors + degree, degree) - (0 if constant else 1)
+def pool_size(n_regressors: int, degree: int, constant: bool, linear: int = 0) -> int:
+    """Number of monomials of total degree 1..degree in n variables, plus the constant; ``linear`` of the
+    variables enter only as terms of their own (x, never x^2 nor x * z)."""
+    return math.comb(n_regressors - linear + degree, degree) - (0 if constant else 1) + (linear if degree else 0)
 
 
-def pool_exponents(n_regressors: int, degree: int, constant: bool) -> np.ndarray:
-    """Every monomial up to ``degree`` (eq. 3.10 / 3.11), by degree, constant first."""
+def pool_exponents(n_regressors: int, degree: int, constant: bool, linear: np.ndarray | None = None) -> np.ndarray:
+    """Every monomial up to ``degree`` (eq. 3.10 / 3.11), by degree, constant first. ``linear`` (bool per
+    regressor): those regressors appear only as linear terms of their own, the pool of a model
+    y[t] = f(y[t-1], ...) + sum_k b_k u[t-k] (``input_terms: linear``)."""
+    lin = np.zeros(n_regressors, dtype=bool) if linear is None else np.asarray(linear, dtype=bool)
     rows = [np.zeros(n_regressors, dtype=np.int64)] if constant else []
     for d in range(1, degree + 1):
         for combo in itertools.combinations_with_replacement(range(n_regressors), d):
+            if d > 1 and lin[list(combo)].any():
+                continue
             row = np.zeros(n_regressors, dtype=np.int64)
             np.add.at(row, list(combo), 1)
             rows.append(row)

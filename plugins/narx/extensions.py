@@ -50,7 +50,11 @@ def lag_table(ctx: ExtensionContext) -> dict[str, list[int]]:
             fitted.setdefault(r.name, []).append(r.lag)
         return fitted
     return default_lag_table(
-        list(ctx.model_input_names), list(ctx.output_names), _degree(ctx), bool(ctx.params.get("constant", True))
+        list(ctx.model_input_names),
+        list(ctx.output_names),
+        _degree(ctx),
+        bool(ctx.params.get("constant", True)),
+        _linear_inputs(ctx),
     )
 
 
@@ -75,9 +79,16 @@ def lags_patch(table: dict[str, list[int]]) -> dict[str, Any]:
     return params_patch(lags={k: _compact(v) for k, v in table.items() if v})
 
 
+def _linear_inputs(ctx: ExtensionContext) -> bool:
+    """Do the inputs enter only as linear terms (``input_terms: linear``)?"""
+    return ctx.params.get("input_terms") == "linear"
+
+
 def _pool(ctx: ExtensionContext, table: dict[str, list[int]], degree: int | None = None) -> int:
     degree = _degree(ctx) if degree is None else degree
-    return pool_size(sum(len(v) for v in table.values()), degree, bool(ctx.params.get("constant", True)))
+    inputs = set(ctx.model_input_names) | set(ctx.input_names)
+    linear = sum(len(v) for k, v in table.items() if k in inputs) if _linear_inputs(ctx) else 0
+    return pool_size(sum(len(v) for v in table.values()), degree, bool(ctx.params.get("constant", True)), linear)
 
 
 def _fits(ctx: ExtensionContext, table: dict[str, list[int]], degree: int | None = None) -> bool:
@@ -158,6 +169,25 @@ def _higher_degree(ctx: ExtensionContext, steps: tuple[int, ...]) -> list[Extens
         if d <= 10 and _fits(ctx, table, d):
             out.append(Extension(f"polynomial degree {d} (was {degree})", params_patch(degree=d)))
     return out
+
+
+def _input_monomials(ctx: ExtensionContext) -> list[Extension]:
+    """Inputs that entered only linearly (``input_terms: linear``) in every monomial of the degree."""
+    if not _linear_inputs(ctx) or not _free_params(ctx):
+        return []
+    table = lag_table(ctx)
+    degree = _degree(ctx)
+    if pool_size(sum(len(v) for v in table.values()), degree, bool(ctx.params.get("constant", True))) > int(
+        ctx.params.get("max_pool", 3000)
+    ):
+        return []
+    return [
+        Extension(
+            f"the inputs in every monomial of degree {degree} (input_terms: any, was linear): a static "
+            "nonlinearity of the input",
+            params_patch(input_terms="any"),
+        )
+    ]
 
 
 def _output_terms(ctx: ExtensionContext) -> list[Extension]:
@@ -317,7 +347,7 @@ def extensions(cause: str, ctx: ExtensionContext) -> list[Extension]:
             ]
         return []
     if cause == "static-nonlinearity":
-        return _higher_degree(ctx, (2, 1))
+        return _input_monomials(ctx) + _higher_degree(ctx, (2, 1))
     if cause == "output-nonlinearity":
         out = _higher_degree(ctx, (1,))
         out += _output_terms(ctx)

@@ -19,7 +19,7 @@ from dynmodel import regression
 from dynmodel.family import Progress
 
 from . import pool as pool_mod
-from .embedding import pool_exponents, pool_size
+from .embedding import Embedding, pool_exponents, pool_size
 from .params import NarxFamilyParams
 
 #: stability(k, exponents, weights) -> True when output k's polynomial diverges in free run
@@ -28,15 +28,18 @@ StabilityCheck = Callable[[int, np.ndarray, np.ndarray], bool]
 FreeRunError = Callable[[int, np.ndarray, np.ndarray], float]
 
 
-def make_pool(n_regressors: int, p: NarxFamilyParams) -> np.ndarray:
-    degree = p.max_degree
-    K = pool_size(n_regressors, degree, p.constant)
+def make_pool(emb: Embedding, p: NarxFamilyParams) -> np.ndarray:
+    """The pool of ``emb``'s regressors up to the degree (with ``input_terms: linear`` the inputs only as
+    linear terms of their own)."""
+    degree, n_regressors = p.max_degree, emb.size
+    linear = emb.inputs if p.input_terms == "linear" else None
+    K = pool_size(n_regressors, degree, p.constant, 0 if linear is None else int(linear.sum()))
     if K > p.max_pool:
         raise ValueError(
             f"the pool would hold {K} monomials ({n_regressors} regressors up to degree {degree}), more "
             f"than max_pool = {p.max_pool}; lower the degree, use fewer lags, or raise max_pool"
         )
-    return pool_exponents(n_regressors, degree, p.constant)
+    return pool_exponents(n_regressors, degree, p.constant, linear)
 
 
 def fos_structure(

@@ -92,6 +92,14 @@ class NarxFamilyParams(FamilyParams):
         "default lags on the free-running validation error",
     )
     constant: bool = Field(True, description="offer a constant term (always selected first)")
+    input_terms: Literal["any", "linear"] = Field(
+        "any",
+        description="which monomials of the inputs the pool holds: any: every monomial up to the degree; linear: "
+        "the inputs enter only as linear terms of their own, y[t] = f(y[t-1], ...) + sum_k b_k u[t-k] with f a "
+        "polynomial of the past outputs: the structure of a force-driven mechanical system (m y'' + g(y, y') = u, "
+        "Silverbox's Duffing oscillator, a positioning axis with friction), whose free run responds in proportion "
+        "to an input beyond the training range instead of through its cube",
+    )
     terms: Optional[Union[list[str], dict[str, list[str]]]] = Field(
         None,
         description="a fixed structure instead of FOS: monomials such as 'y[t-1]^2 * u[t]' and '1' for the "
