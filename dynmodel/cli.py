@@ -289,6 +289,8 @@ def predict(
         err.print(result.written_line(), markup=False)
     if result.plot_path is not None:
         err.print(f"plot written to {result.plot_path}", markup=False)
+    for note in result.excursion_notes():
+        err.print(f"note: {note}", markup=False, soft_wrap=True)
     problem = result.problem()
     if problem is not None:
         raise problem

@@ -58,6 +58,25 @@ def test_fit_predict_inspect_round_trip(cli, tmp_path, quick_spec):
     assert summary["model"]["mode"] == "external" and summary["tune_in_samples"] == 20  # the default tune-in
 
 
+def test_predict_says_where_the_input_leaves_the_training_range(cli, tmp_path, quick_spec):
+    """As fit says of a test split: beyond the training input range by more than 5 % of its width the model
+    extrapolates; predict names the input, how far and where (stderr), and writes the predictions anyway."""
+    r = cli("fit", quick_spec, "--out", tmp_path / "m.h5", "-q")
+    assert r.exit_code == 0, r.stderr
+    model = dynmodel.load(tmp_path / "m.h5")
+    lo, hi = model.train_input.min(), model.train_input.max()
+    u, y = narx(600, 78)
+    write_csv(tmp_path / "inside.csv", {"u": np.clip(u, lo, hi), "y": y})
+    r = cli("predict", tmp_path / "m.h5", "--input", tmp_path / "inside.csv", "--out", tmp_path / "p1.csv")
+    assert r.exit_code == 0 and "training range" not in r.stderr
+    big = np.clip(u, lo, hi)
+    big[400] = hi + 0.3 * (hi - lo)
+    write_csv(tmp_path / "beyond.csv", {"u": big, "y": y})
+    r = cli("predict", tmp_path / "m.h5", "--input", tmp_path / "beyond.csv", "--out", tmp_path / "p2.csv")
+    assert r.exit_code == 0 and (tmp_path / "p2.csv").exists()
+    assert "note: the input 'u' leaves the training range by 30 % of its width (sample 400" in r.stderr
+
+
 def test_out_overrides_the_spec_output(cli, tmp_path, quick_spec):
     r = cli("fit", quick_spec, "--out", tmp_path / "other.h5", "-q")
     assert r.exit_code == 0 and (tmp_path / "other.h5").exists() and not (tmp_path / "quick.h5").exists()

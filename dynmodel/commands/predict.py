@@ -35,6 +35,24 @@ class PredictResult:
         marked = f" (the first {warmup} rows are the measured tune-in, marked in column 'measured')"
         return f"{len(self.rows)} predictions written to {self.out}{skipped or (marked if warmup else '')}"
 
+    def excursion_notes(self, margin: float = 0.05) -> list[str]:
+        """An input that goes beyond the training input range by more than ``margin`` of its width, as ``fit``
+        says it of a validation or test split: the model extrapolates there (a polynomial's input monomials
+        grow, a readout meets states it never saw)."""
+        from ..data.dataset import beyond_range
+
+        train, u = self.model.train_input, self.inputs.u
+        if train is None or train.ndim != 2 or train.shape[0] == 0 or train.shape[1] != u.shape[1]:
+            return []
+        notes = []
+        for name, (excess, k) in zip(self.model.input_names, beyond_range(u, train.min(axis=0), train.max(axis=0))):
+            if excess > margin:
+                notes.append(
+                    f"the input '{name}' leaves the training range by {100 * excess:.0f} % of its width (sample {k}, "
+                    f"{self.inputs.time_name} = {self.inputs.time[k]:.6g}): the model extrapolates there"
+                )
+        return notes
+
     def problem(self) -> FreeRunDiverged | None:
         """The divergence of the free run (later predictions are NaN), or None."""
         at = self.run.diverged_at

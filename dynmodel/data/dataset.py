@@ -72,6 +72,21 @@ def compact_ranges(pieces: dict[str, list[Range]]) -> tuple[list[Range], dict[st
     return cuts, ranges
 
 
+def beyond_range(u: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[tuple[float, int]]:
+    """Per column of ``u`` (n, k): how far it goes beyond [lo, hi], as a fraction of hi - lo (0 inside), and the
+    sample where it goes farthest (-1 for an empty ``u``)."""
+    width = np.maximum(hi - lo, np.finfo(float).tiny)
+    out = []
+    for j in range(u.shape[1]):
+        if u.shape[0] == 0:
+            out.append((0.0, -1))
+            continue
+        excess = np.maximum(u[:, j] - hi[j], lo[j] - u[:, j]) / width[j]
+        k = int(np.nanargmax(excess)) if np.isfinite(excess).any() else 0
+        out.append((max(float(excess[k]), 0.0) if np.isfinite(excess[k]) else 0.0, k))
+    return out
+
+
 def is_test(split: str) -> bool:
     """Is ``split`` a test split key (``test`` or ``test:<name>``)?"""
     return split == "test" or split.startswith("test:")
@@ -189,19 +204,15 @@ class Dataset:
         if train.shape[0] == 0:
             return []
         lo, hi = train.min(axis=0), train.max(axis=0)
-        width = np.maximum(hi - lo, np.finfo(float).tiny)
         found = []
         for split in self.splits()[1:]:
+            beyond = [beyond_range(self.recordings[rec].u[a:b], lo, hi) for rec, a, b in self.ranges.get(split, [])]
             for j, name in enumerate(self.input_names):
                 worst = (0.0, -1, -1)
-                for rec, start, stop in self.ranges.get(split, []):
-                    u = self.recordings[rec].u[start:stop, j]
-                    if u.size == 0:
-                        continue
-                    excess = np.maximum(u - hi[j], lo[j] - u) / width[j]
-                    k = int(np.argmax(excess))
-                    if excess[k] > worst[0]:
-                        worst = (float(excess[k]), rec, start + k)
+                for (rec, start, _), per_input in zip(self.ranges.get(split, []), beyond):
+                    excess, k = per_input[j]
+                    if excess > worst[0]:
+                        worst = (excess, rec, start + k)
                 if worst[0] > margin:
                     columns = self.recordings[worst[1]].input_columns
                     found.append(
