@@ -412,6 +412,28 @@ def test_the_safety_limit_keeps_the_screening_fit_and_ends_without_an_error(tmp_
     assert dynmodel.load(tmp_path / "m.h5").spec["cost"] == "mse1"  # ... kept as it is, not refitted in full
 
 
+def test_a_full_fit_planned_beyond_the_budget_leaves_the_screening_fit_standing(tmp_path, monkeypatch):
+    """On a hold-out, a full fit planned beyond all that is left of the allowance is not run, not even as the
+    stage's first (on a generated Wiener-Hammerstein system of 100k samples the leader's full fit, planned at
+    1976 s of a 600 s allowance, took 876 s alone): the candidate's screening fit stands as its final one, the
+    model is that fit, and a note says so and what budget fits it in full."""
+    import dynmodel_plugins.narx.search as narx_search
+
+    monkeypatch.setattr(narx_search, "_REFINE_COST", 1.0)  # every free-running re-estimation planned for hours
+    _data(tmp_path)
+    model, _ = _fit(_raw(families=["narx"], budget=30), tmp_path)
+    rec = model.search
+    assert rec["mode"] == "holdout" and not any(s["stage"] == "full" for s in rec["stages"])
+    stood = [c for c in rec["candidates"] if c.get("stands_screened")]
+    assert stood and rec["winner"] in {c["key"] for c in stood}
+    winner = next(c for c in stood if c["key"] == rec["winner"])
+    assert winner["level"] == "final" and winner["levels"]["final"]["score"] == winner["levels"]["screen"]["score"]
+    assert any(n.startswith("not fitted in full, each fit alone planned beyond") for n in rec["notes"])
+    assert any(n.startswith(f"the model is the screening fit of {winner['family']}: ") for n in rec["notes"])
+    assert model.spec["cost"] == "mse1"  # the screening variant (least-squares weights), as it was validated
+    assert rec["seconds"] < 60
+
+
 def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):
     """The moves stage fits what the diagnosis of the leader proposes. The detectors propose nothing on this
     generated system, so the diagnosis (run in this process with one worker) also returns a proposal of its
