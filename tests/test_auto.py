@@ -432,6 +432,9 @@ def test_a_full_fit_planned_beyond_the_budget_leaves_the_screening_fit_standing(
     assert any(n.startswith(f"the model is the screening fit of {winner['family']}: ") for n in rec["notes"])
     assert model.spec["cost"] == "mse1"  # the screening variant (least-squares weights), as it was validated
     assert rec["seconds"] < 60
+    from dynmodel.search.report import leaderboard
+
+    assert leaderboard(rec)[0]["key"] == rec["winner"] and leaderboard(rec)[0]["level"] == "screened"  # marked *
 
 
 def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):

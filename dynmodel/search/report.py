@@ -62,7 +62,7 @@ def leaderboard(record: dict[str, Any], limit: int = LEADERBOARD_ROWS) -> list[d
                 "family": c["family"],
                 "summary": c["summary"],
                 "validation_nmse": c["validation_nmse"],
-                "level": "screened" if level == "screen" else "full",
+                "level": "screened" if level == "screen" or c.get("stands_screened") else "full",
                 "fits": s.get("fits", 0),
                 "seconds": c.get("fit_seconds", 0.0),
                 "verdict": c.get("verdict", ""),
