@@ -429,7 +429,7 @@ def test_a_full_fit_planned_beyond_the_budget_leaves_the_screening_fit_standing(
     winner = next(c for c in stood if c["key"] == rec["winner"])
     assert winner["level"] == "final" and winner["levels"]["final"]["score"] == winner["levels"]["screen"]["score"]
     assert any(n.startswith("not fitted in full, each fit alone planned beyond") for n in rec["notes"])
-    assert any(n.startswith(f"the model is the screening fit of {winner['family']}: ") for n in rec["notes"])
+    assert any(n.startswith(f"the model is {winner['family']}: ") and "screening variant" in n for n in rec["notes"])
     assert model.spec["cost"] == "mse1"  # the screening variant (least-squares weights), as it was validated
     assert rec["seconds"] < 60
     from dynmodel.search.report import leaderboard
@@ -902,6 +902,29 @@ def test_long_recordings_left_out_in_turn_are_screened_on_part_of_the_others(tmp
     assert rec["layouts"]["final"] == [Layout("recording", fold=i, folds=3).to_json() for i in range(3)]
     assert any("final" in c["levels"] for c in rec["candidates"])  # survivors fitted on all the others
     assert model.metrics["validation"]["nmse"] < 0.5
+
+
+def test_recordings_left_out_whose_full_fits_exceed_the_budget_keep_the_screening_variant(tmp_path, monkeypatch):
+    """Left out in turn, a candidate's full fits (every fold) planned beyond the budget are not run (three
+    recordings of 50k samples of a generated Wiener-Hammerstein system: the leader's three folds, planned at
+    2975 s of a 600 s allowance, ran into the safety limit); its screening folds stand, and the model is its
+    screening variant fitted on the last screening samples of all the recordings, as it was validated."""
+    import dynmodel.search.run as search_run
+    import dynmodel_plugins.narx.search as narx_search
+
+    monkeypatch.setattr(search_run, "SCREEN_SAMPLES", 500)  # 1800 training samples per fold count as long
+    monkeypatch.setattr(narx_search, "_REFINE_COST", 1.0)  # every free-running re-estimation planned for hours
+    raw, _ = _three_recordings(tmp_path, budget=30)
+    model, _ = _fit(raw, tmp_path)
+    rec = model.search
+    assert rec["mode"] == "recordings" and not rec["safety_limit"]
+    assert not any(s["stage"] == "full" for s in rec["stages"])
+    winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
+    assert winner.get("stands_screened") and winner["level"] == "final"
+    assert model.spec["cost"] == "mse1"  # the screening variant, refitted ...
+    assert any("on the last 500 training samples, as it was validated" in n for n in rec["notes"])
+    assert sum(model.train_input_lengths) == 3 * 630  # ... and evaluated on the spec's own layout
+    assert model.metrics["validation"]["nmse"] < 5
 
 
 def test_a_candidate_fits_as_written_with_its_nulls(tmp_path):
