@@ -407,6 +407,14 @@ class Family(ABC):
         takes no part in the search."""
         return []
 
+    @classmethod
+    def full_work(cls, ctx: SearchContext, found: Found) -> float | None:
+        """Seconds of one full fit of ``found.candidate`` (its full variant on ``ctx.n_train`` training samples,
+        as :attr:`Candidate.work`), estimated again from its screening fit ``found`` (what that fit chose: its
+        size); None (the default): the candidate's own estimate stands. Cheap (no fitting). The search uses a
+        larger answer only to leave out a full fit the budget cannot take (docs/plugins.md)."""
+        return None
+
     def check_fitted(self) -> None:
         if not any(k.endswith("_") and not k.startswith("_") for k in vars(self)):
             raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit() first")

@@ -437,6 +437,35 @@ def test_a_full_fit_planned_beyond_the_budget_leaves_the_screening_fit_standing(
     assert leaderboard(rec)[0]["key"] == rec["winner"] and leaderboard(rec)[0]["level"] == "screened"  # marked *
 
 
+def test_a_survivor_s_full_fit_is_estimated_again_from_its_screening_fit(tmp_path, monkeypatch):
+    """A starting candidate guesses its size; its screening fit shows it (on three recordings of 50k samples the
+    narx longer-memory candidate guessed 40 terms and kept about 170). The family's ``full_work`` hook estimates
+    the full fit again from that fit: narx from the pool and terms it chose; a larger estimate beyond the budget
+    leaves the screening fit standing, a smaller one never adds a fit to the plan."""
+    from dynmodel.search.space import Found, SearchContext
+    from dynmodel_plugins.narx import Narx
+    from dynmodel_plugins.narx import search as narx_search
+
+    u, y = narx(3000, 5)
+    small = Narx(lags={"u": [0, 1], "y": [1]}, degree=1).fit(u, y, cost="mse1")
+    large = Narx(lags={"u": [0, 1, 2, 3], "y": [1, 2, 3]}, degree=3, max_terms=60, patience=None).fit(u, y, cost="mse1")
+    ctx = SearchContext(("u",), ("y",), 1.0, n_train=80000, n_validation=20000, data={})
+    cand = Candidate(family="narx", params={}, summary="x", cost="mse_inf", work=1.0)
+    works = [narx_search.full_work(ctx, Found(cand, m, {}, 1.0)) for m in (small, large)]
+    assert works[0] is not None and works[1] is not None and works[1] > 50 * works[0]
+    grown = Candidate(family="narx", params={"selection": "free_run"}, summary="x", cost="mse_inf", work=1.0)
+    assert narx_search.full_work(ctx, Found(grown, large, {}, 1.0)) is None  # its own estimate counts its growth
+
+    monkeypatch.setattr(narx_search, "full_work", lambda ctx, found: 1e9)  # every survivor far beyond the budget
+    _data(tmp_path)
+    model, _ = _fit(_raw(families=["narx"], budget=30), tmp_path)
+    rec = model.search
+    assert not any(s["stage"] == "full" for s in rec["stages"])
+    finals = [c for c in rec["candidates"] if "final" in c["levels"]]
+    assert any(c.get("stands_screened") for c in finals)
+    assert all(c.get("stands_screened") or c["screen_is_final"] for c in finals)
+
+
 def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):
     """The moves stage fits what the diagnosis of the leader proposes. The detectors propose nothing on this
     generated system, so the diagnosis (run in this process with one worker) also returns a proposal of its

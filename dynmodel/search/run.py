@@ -733,10 +733,12 @@ class Search:
         for g in groups:
             e = self.entries[g.key.split("|")[0]]
             screen = e.summaries.get("screen")
-            if g.work <= room or e.random or screen is None or not (screen.finite and screen.ok):
+            usable = screen is not None and screen.finite and screen.ok
+            work = g.work * self._rework(e) if usable and not e.random else g.work
+            if work <= room or e.random or not usable:
                 kept.append(g)
                 continue
-            e.full_work_skipped = g.work
+            e.full_work_skipped = work
             e.summaries["final"] = summarize(sorted(e.results_at("final"), key=lambda x: x.key))  # type: ignore[assignment]
             skipped.append(e.label)
         if skipped:
@@ -749,6 +751,21 @@ class Search:
                 "stand as their final ones"
             )
         return kept
+
+    def _rework(self, e: Entry) -> float:
+        """How many times the candidate's own estimate its family now puts its full fit at, knowing its screening
+        fit (:meth:`Family.full_work`; at least 1: a smaller answer never adds a fit to the plan)."""
+        cls = registry.families().get(e.cand.family)
+        hook = getattr(cls, "full_work", None)
+        if hook is None or not e.cand.work:
+            return 1.0
+        try:
+            again = hook(self.ctx, self._found(e.cand.key, "screen"))
+        except Exception:  # noqa: BLE001 - an estimate must not stop the search
+            return 1.0
+        if again is None or not math.isfinite(again):
+            return 1.0
+        return max(1.0, float(again) / float(e.cand.work))
 
     def _stage_moves(self) -> None:
         if "moves" in self.params.exclude:

@@ -799,3 +799,9 @@ class Narx(Family):
         from .search import search_space
 
         return search_space(ctx, around)
+
+    @classmethod
+    def full_work(cls, ctx, found):
+        from .search import full_work
+
+        return full_work(ctx, found)
