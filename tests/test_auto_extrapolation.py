@@ -52,7 +52,12 @@ def _search(tmp_path: Path, test_gain: float, budget: float = 2) -> dict:
 
 
 def _full(record: dict) -> int:
-    return sum(1 for c in record["candidates"] if "final" in c["levels"] and c["origin"] != "move")
+    """Candidates fitted in full (a candidate whose screening fit stands as its final one was not)."""
+    return sum(
+        1
+        for c in record["candidates"]
+        if "final" in c["levels"] and c["origin"] != "move" and not c.get("stands_screened")
+    )
 
 
 def _screened(record: dict) -> int:
