@@ -550,9 +550,9 @@ def test_ridge_factor_equals_the_closed_form_and_auto_uses_the_free_run_validati
     assert errors[chosen] == min(e for e in errors if e is not None)
 
 
-def test_error_propagation_recovers_from_a_diverging_start():
-    """cost mse_inf from weights whose free run diverges: the fed-back signal starts as the measured
-    output and shifts to the prediction (6.3.2), ending at the free-running optimum a = 0.8, b = 1."""
+def _diverging_start(terms: list[str], weights: list[float]) -> Narx:
+    """The linear system y_t = 0.8 y_{t-1} + u_t (white output noise) fitted with ``terms`` on the free-running
+    error from ``weights``."""
     raw = {
         "data": {
             "generator": "linear-system",
@@ -562,15 +562,33 @@ def test_error_propagation_recovers_from_a_diverging_start():
             "scaling": "none",
             "noise": {"std": 0.5, "splits": ["train"]},
         },
-        "model": {"family": "narx", "params": {"terms": ["y[t-1]", "u[t]"]}},
+        "model": {"family": "narx", "params": {"terms": terms}},
     }
     spec, ds, td = loaded(raw)
     fam = Narx(**spec.model.params.model_dump()).fit(td, "mse1")
-    fam.weights_ = np.array([1.15, 1.0])  # |a| > 1: the free run leaves every range
+    fam.weights_ = np.array(weights)
     fam._refine(td, lambda *a: None)
+    return fam
+
+
+def test_error_propagation_recovers_from_a_diverging_start():
+    """cost mse_inf from weights whose free run diverges: the fed-back signal starts as the measured
+    output and shifts to the prediction (6.3.2), ending at the free-running optimum a = 0.8, b = 1 (a small
+    square of the input in the structure keeps the model nonlinear: a linear one starts from Steiglitz-McBride
+    iterations instead, below)."""
+    fam = _diverging_start(["y[t-1]", "u[t]", "u[t]^2"], [1.15, 1.0, 0.0])  # |a| > 1: the run leaves every range
     steps = fam.refinement_
     assert steps[0]["diverged"] is True
     assert [s["mix"] for s in steps[1:]] == pytest.approx([0.8, 0.6, 0.4, 0.2, 0.0])
+    assert abs(fam.weights_[0] - 0.8) < 0.03 and abs(fam.weights_[1] - 1.0) < 0.05 and abs(fam.weights_[2]) < 0.05
+
+
+def test_a_linear_model_from_a_diverging_start_starts_from_steiglitz_mcbride_iterations():
+    """The same diverging start for the linear model: no mixture ramp, the output-error start, the same optimum."""
+    fam = _diverging_start(["y[t-1]", "u[t]"], [1.15, 1.0])
+    steps = fam.refinement_
+    assert steps[0]["diverged"] is True and steps[1]["start"] == "steiglitz-mcbride"
+    assert [s["mix"] for s in steps[2:]] == [0.0]
     assert abs(fam.weights_[0] - 0.8) < 0.03 and abs(fam.weights_[1] - 1.0) < 0.05
 
 

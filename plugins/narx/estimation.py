@@ -287,7 +287,8 @@ class FreeRunProblem:
     def __post_init__(self) -> None:
         self.scale = 1.0 / np.sqrt(self.scored.n * self.scored.var)
 
-    def _series(self):
+    def series(self):
+        """(scored rows, inputs, outputs) of each training recording with scored rows, up to its last one."""
         for s, rows in enumerate(self.scored.rows):
             if rows.size:
                 ser = self.data.series[s]
@@ -296,7 +297,7 @@ class FreeRunProblem:
 
     def residuals(self, w: np.ndarray) -> np.ndarray:
         parts = []
-        for rows, u, y in self._series():
+        for rows, u, y in self.series():
             yhat, _ = self.st.run(u, y, w, self.mix, None, self.clip)
             r = (yhat[rows] - y[rows]) * self.scale
             parts.append(np.where(np.isfinite(r), r, _BROKEN).ravel())
@@ -306,7 +307,7 @@ class FreeRunProblem:
 
     def jacobian(self, w: np.ndarray) -> np.ndarray:
         parts = []
-        for rows, u, y in self._series():
+        for rows, u, y in self.series():
             _, J, _ = self.st.run_jacobian(u, y, w, self.mix, self.clip)
             # scored rows are one contiguous run in practice: a view, not a copy of the N x p matrix
             block = J[rows[0] : rows[-1] + 1] if rows[-1] - rows[0] + 1 == rows.size else J[rows]

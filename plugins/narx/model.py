@@ -36,6 +36,7 @@ from .estimation import (
     segment_view,
     split_error,
 )
+from .linear_start import steiglitz_mcbride
 from .onestep import fixed_weights, fos_structure, make_pool, ridge_candidates
 from .params import SETTLE_SAMPLES, FreeRunRefinement, LagRange, NarxFamilyParams
 from .selection import free_run_selection
@@ -644,7 +645,15 @@ class Narx(Family):
             start["validation_nmse"] = None if not np.isfinite(e) else 100 * e
         self.refinement_.append(start)
         least_squares = self.weights_
-        self.weights_ = refine(problem, self.weights_, mixes, r.solver, r.max_nfev, r.tol, record)
+        w0 = self.weights_
+        linear = steiglitz_mcbride(problem, least_squares)
+        ls_cost = start["train_cost"]
+        if linear is not None and (not isinstance(ls_cost, float) or linear[1] < ls_cost):
+            if not diverges(check, data, scored, linear[0], band):
+                # a linear model: the output-error start is nearer the free-run optimum than least squares
+                w0, unstable, mixes = linear[0], False, [0.0]
+                self.refinement_.append({"start": "steiglitz-mcbride", "train_cost": linear[1]})
+        self.weights_ = refine(problem, w0, mixes, r.solver, r.max_nfev, r.tol, record)
         before, after = start.get("validation_nmse"), self.refinement_[-1].get("validation_nmse")
         if val is not None and before is not None and (after is None or after > before):
             # the validation split decides (A.3): the free-running estimate generalises worse here
@@ -774,6 +783,8 @@ class Narx(Family):
                 info["mse_inf error propagation"] = (
                     "the least-squares model diverged; mixture ramped to pure prediction"
                 )
+            if any(e.get("start") == "steiglitz-mcbride" for e in self.refinement_):
+                info["mse_inf start"] = "Steiglitz-McBride iterations (a linear model: nearer its free-run optimum)"
             if last.get("kept"):
                 info["mse_inf"] = "not kept: the least-squares weights validate better"
             if last.get("validation_nmse") is not None:
