@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from ..data.dataset import beyond_range
 from ..errors import FreeRunDiverged
 from ..model import FittedModel, Run
 from ..prediction import PredictionInput
@@ -39,8 +40,6 @@ class PredictResult:
         """An input that goes beyond the training input range by more than ``margin`` of its width, as ``fit``
         says it of a validation or test split: the model extrapolates there (a polynomial's input monomials
         grow, a readout meets states it never saw)."""
-        from ..data.dataset import beyond_range
-
         train, u = self.model.train_input, self.inputs.u
         if train is None or train.ndim != 2 or train.shape[0] == 0 or train.shape[1] != u.shape[1]:
             return []

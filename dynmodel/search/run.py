@@ -108,6 +108,10 @@ class Entry:
     def stands_screened(self) -> bool:
         return self.full_work_skipped > 0
 
+    def summarize_final(self) -> None:
+        """Its final summary from the fits that count as final (:meth:`results_at`)."""
+        self.summaries["final"] = summarize(sorted(self.results_at("final"), key=lambda x: x.key))  # type: ignore[assignment]
+
     def results_at(self, level: str) -> list[TaskResult]:
         if level == "final" and (self.reuse_screen or self.stands_screened):
             return self.results.get("screen", []) + self.results.get("final", [])
@@ -563,7 +567,7 @@ class Search:
             self.params.seeds
         )
         if entry.reuse_screen and (level == "final" or complete):
-            entry.summaries["final"] = summarize(sorted(entry.results_at("final"), key=lambda x: x.key))  # type: ignore[assignment]
+            entry.summarize_final()
 
     def _screen_is_final(self, cand: Candidate) -> bool:
         """Are the screening fits of ``cand`` final ones (same variant, same layouts)?"""
@@ -739,7 +743,7 @@ class Search:
                 kept.append(g)
                 continue
             e.full_work_skipped = work
-            e.summaries["final"] = summarize(sorted(e.results_at("final"), key=lambda x: x.key))  # type: ignore[assignment]
+            e.summarize_final()
             skipped.append(e.label)
         if skipped:
             samples = self.screen_layouts[0].samples

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from .embedding import OUTPUT
+from .embedding import INPUT, OUTPUT
 from .estimation import FreeRunProblem
 
 #: iterations at most (the resonant band-pass converges in about ten)
@@ -24,28 +24,37 @@ ITERATIONS = 20
 _MAX_RADIUS = 0.9995
 
 
+#: the source of the constant term in :func:`_terms`
+_CONSTANT = -1
+
+
 def applies(problem: FreeRunProblem) -> bool:
     """Whether the model is one output, linear in its lagged signals (every term one factor of power 1 or
     the constant), on finite training data. The filters start from rest whatever the model's ``initial``:
     the iterate is only a start, kept when its free run (with the model's own start) fits better."""
     st = problem.st
-    if st.n_out != 1 or not len(st.ptr) > 1:
+    if st.n_out != 1 or not len(st.reg):  # one output, at least one lagged signal
         return False
     if np.any(np.diff(st.ptr) > 1) or np.any(st.pw != 1):
         return False
     return all(np.isfinite(u).all() and np.isfinite(y).all() for _, u, y in problem.series())
 
 
-def _denominator(problem: FreeRunProblem, w: np.ndarray) -> np.ndarray:
-    """A(q) = 1 - sum_i a_i q^-i from the weights of the output-lag terms, its poles inside _MAX_RADIUS."""
+def _terms(problem: FreeRunProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(source, channel, lag) of each term of a linear model (source _CONSTANT for the constant)."""
     st = problem.st
-    a = np.zeros(int(st.lag.max(initial=0)) + 1)
+    factor = st.reg[np.minimum(st.ptr[:-1], len(st.reg) - 1)]  # each term's single regressor
+    constant = st.ptr[1:] == st.ptr[:-1]
+    return np.where(constant, _CONSTANT, st.src[factor]), st.ch[factor], np.where(constant, 0, st.lag[factor])
+
+
+def _denominator(terms: tuple[np.ndarray, np.ndarray, np.ndarray], w: np.ndarray) -> np.ndarray:
+    """A(q) = 1 - sum_i a_i q^-i from the weights of the output-lag terms, its poles inside _MAX_RADIUS."""
+    src, _, lag = terms
+    a = np.zeros(int(lag.max(initial=0)) + 1)
     a[0] = 1.0
-    for j in range(len(st.ptr) - 1):
-        if st.ptr[j + 1] > st.ptr[j]:
-            r = st.reg[st.ptr[j]]
-            if st.src[r] == OUTPUT:
-                a[st.lag[r]] -= w[j]
+    fed_back = src == OUTPUT
+    np.subtract.at(a, lag[fed_back], w[fed_back])
     order = int(np.flatnonzero(a)[-1])  # trailing zeros (output lags shorter than the input lags) are no poles
     poles = np.roots(a[: order + 1])
     radius = np.abs(poles)
@@ -55,26 +64,25 @@ def _denominator(problem: FreeRunProblem, w: np.ndarray) -> np.ndarray:
     return a
 
 
-def _filtered_regressors(problem: FreeRunProblem, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _filtered_regressors(
+    problem: FreeRunProblem, terms: tuple[np.ndarray, np.ndarray, np.ndarray], a: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Rows of the terms' values and targets on the training rows, every signal filtered by 1 / A(q)."""
-    st = problem.st
-    pad = int(st.lag.max(initial=0))  # values before a recording's first sample are 0 (as in 3.1.1)
+    src, ch, lag = terms
+    pad = int(lag.max(initial=0))  # values before a recording's first sample are 0 (as in 3.1.1)
     X, T = [], []
     for rows, u, y in problem.series():
         uf = np.concatenate([np.zeros((pad, u.shape[1])), signal.lfilter([1.0], a, u, axis=0)])
         yf = np.concatenate([np.zeros((pad, y.shape[1])), signal.lfilter([1.0], a, y, axis=0)])
         ones = np.concatenate([np.zeros(pad), signal.lfilter([1.0], a, np.ones(len(y)))])
-        rows = rows + pad
-        cols = []
-        for j in range(len(st.ptr) - 1):
-            if st.ptr[j + 1] == st.ptr[j]:
-                cols.append(ones[rows])
-                continue
-            r = st.reg[st.ptr[j]]
-            source = yf if st.src[r] == OUTPUT else uf
-            cols.append(source[rows - st.lag[r], st.ch[r]])
-        X.append(np.column_stack(cols))
-        T.append(yf[rows, 0])
+        at = (rows + pad)[:, None] - lag[None, :]
+        cols = np.empty(at.shape)
+        for source, values in ((OUTPUT, yf), (INPUT, uf)):
+            of = src == source
+            cols[:, of] = values[at[:, of], ch[of]]
+        cols[:, src == _CONSTANT] = ones[rows + pad, None]
+        X.append(cols)
+        T.append(yf[rows + pad, 0])
     return np.concatenate(X), np.concatenate(T)
 
 
@@ -83,11 +91,12 @@ def steiglitz_mcbride(problem: FreeRunProblem, w0: np.ndarray) -> tuple[np.ndarr
     from ``w0``; None when the model is not one to which it applies (:func:`applies`)."""
     if not applies(problem):
         return None
+    terms = _terms(problem)
     best_w, best_cost = None, np.inf
     w = np.asarray(w0, dtype=np.float64)
     for _ in range(ITERATIONS):
         with np.errstate(over="ignore", invalid="ignore"):
-            X, T = _filtered_regressors(problem, _denominator(problem, w))
+            X, T = _filtered_regressors(problem, terms, _denominator(terms, w))
         if not (np.isfinite(X).all() and np.isfinite(T).all()):
             break
         w_next = np.linalg.lstsq(X, T, rcond=None)[0]

@@ -635,23 +635,19 @@ class Narx(Family):
             self.refinement_.append(entry)
             progress("mse_inf", None, f"mix {mix:.2f}: cost {2 * res.cost:.4g} after {res.nfev} runs")
 
-        start = {
-            "mix": 1.0 if unstable else 0.0,
-            "train_cost": problem.cost(self.weights_) if not unstable else None,
-            "diverged": bool(unstable),
-        }
+        least_squares = self.weights_
+        ls_cost = None if unstable else problem.cost(least_squares)
+        start = {"mix": 1.0 if unstable else 0.0, "train_cost": ls_cost, "diverged": bool(unstable)}
         if val is not None:
-            e = split_error(check, data, val, self.weights_, band)
+            e = split_error(check, data, val, least_squares, band)
             start["validation_nmse"] = None if not np.isfinite(e) else 100 * e
         self.refinement_.append(start)
-        least_squares = self.weights_
-        w0 = self.weights_
+        w0 = least_squares
         linear = steiglitz_mcbride(problem, least_squares)
-        ls_cost = start["train_cost"]
-        if linear is not None and (not isinstance(ls_cost, float) or linear[1] < ls_cost):
+        if linear is not None and (ls_cost is None or linear[1] < ls_cost):
             if not diverges(check, data, scored, linear[0], band):
                 # a linear model: the output-error start is nearer the free-run optimum than least squares
-                w0, unstable, mixes = linear[0], False, [0.0]
+                w0, mixes = linear[0], [0.0]
                 self.refinement_.append({"start": "steiglitz-mcbride", "train_cost": linear[1]})
         self.weights_ = refine(problem, w0, mixes, r.solver, r.max_nfev, r.tol, record)
         before, after = start.get("validation_nmse"), self.refinement_[-1].get("validation_nmse")
