@@ -60,6 +60,17 @@ class SplitSpec(StrictModel):
     validation: Optional[SplitBound] = None
     test: Optional[SplitBound] = None
 
+    @field_validator("train", "validation", "test", mode="before")
+    @classmethod
+    def _fraction_or_range(cls, v: Any) -> Any:
+        """A sample count written where a fraction goes gets the range form in its message."""
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and v > 1:
+            raise ValueError(
+                f"{v:g} is neither a fraction of each recording (0 < f <= 1) nor a sample range; for a number of "
+                f"samples write the range [start, stop], e.g. [0, {int(v)}]"
+            )
+        return v
+
     @model_validator(mode="after")
     def _consistent(self) -> SplitSpec:
         given = {k: v for k, v in self.items()}

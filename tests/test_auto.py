@@ -831,6 +831,42 @@ def test_long_data_without_a_validation_split_is_ranked_on_a_held_out_tail(tmp_p
     assert only_continued != pytest.approx(held_out, rel=1e-6)  # the fresh start counted (a NARX: a little)
 
 
+def test_short_data_without_a_validation_split_keep_the_fit_validated_last(tmp_path):
+    """Short data cross-validated in blocks, with no validation split (``split: {train: 1.0}`` and a test
+    file, as a benchmark that gives only training and test data): the chosen candidate was refitted on the
+    whole training split, where the narx default's term search (and the annealed network's schedule) has
+    nothing to stop on, and the search failed after all its work ("failed when fitted on the whole training
+    split"). The fit of the last fold, validated on the block held out last, is kept, and said so."""
+    _data(tmp_path, n=1500)
+    raw = _raw(families=["narx"], budget=4)
+    raw["data"]["split"] = {"train": 1.0}
+    from dynmodel.search.run import describe_plan
+
+    spec = validate_spec(raw, "<test>", tmp_path)
+    plan = describe_plan(spec, load_dataset(spec))
+    assert any(line.startswith("final model: there is no validation split") for line in plan)
+    model, ds = _fit(raw, tmp_path)
+    rec = model.search
+    assert rec["mode"] == "folds" and rec["folds"] == 5
+    assert any(n.startswith("there is no validation split, so the model kept is") for n in rec["notes"])
+    winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
+    assert winner["verdict"] == "chosen" and not winner.get("data")
+    assert model.metrics["test"]["nmse"] < 1.0  # the NARX plant, 1 % noise
+    # the model is the winner's fit on the fold whose last block was held out, as fitted there
+    fold = view(ds, Layout("fold", fold=4, folds=5))
+    spec = validate_spec(
+        {**raw, "model": {"family": winner["family"], "params": winner["params"]}, "cost": winner["cost"]},
+        "<test>",
+        tmp_path,
+    )
+    alone, _ = engine.fit_dataset(spec, fold, no_progress)
+    test = ds.recordings[-1]
+    warm = model.warmup
+    np.testing.assert_array_equal(
+        model.run(test.u, test.y[:warm] if warm else None).y, alone.run(test.u, test.y[:warm] if warm else None).y
+    )
+
+
 def _three_recordings(tmp_path: Path, budget: float) -> tuple[dict[str, Any], Any]:
     """Three training recordings of 900 samples (other realizations of one system), 70 % training each."""
     for i, seed in enumerate((11, 12, 13)):
@@ -840,6 +876,22 @@ def _three_recordings(tmp_path: Path, budget: float) -> tuple[dict[str, Any], An
     raw["data"] = {"path": [f"run{i}.csv" for i in range(3)], "input": ["u"], "output": ["y"]}
     raw["data"]["split"] = {"train": 0.7, "validation": 0.3}
     return raw, load_dataset(validate_spec(raw, "<test>", tmp_path))
+
+
+def test_recordings_left_out_without_a_validation_split_keep_a_fit_validated(tmp_path):
+    """Three recordings, training only: each left out in turn, and the model kept is one of those fits (the
+    one trained on the most samples), not a refit on all three with nothing to stop its term search on."""
+    raw, ds = _three_recordings(tmp_path, budget=1)
+    raw["data"]["split"] = {"train": 1.0}
+    for i, seed in enumerate((11, 12, 13)):  # recording 2 the longest: its fold trains on the other two
+        u, y = narx(1200 if i != 1 else 600, seed)
+        write_csv(tmp_path / f"run{i}.csv", {"u": u, "y": y})
+    model, ds = _fit(raw, tmp_path)
+    rec = model.search
+    assert rec["mode"] == "recordings" and rec["folds"] == 3
+    note = next(n for n in rec["notes"] if n.startswith("there is no validation split, so the model kept is"))
+    assert "as fitted with recording 2/3 left out" in note
+    assert model.metrics["train"]["nmse"] < 1.0
 
 
 def test_several_recordings_are_each_left_out_in_turn(tmp_path):

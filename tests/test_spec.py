@@ -89,6 +89,9 @@ def test_wrong_values_say_where_and_what():
     assert "add up to 1.2" in _error(raw)
     raw = narx_spec(split={"train": [0, 5000], "test": [4000, 9000]})
     assert "overlap" in _error(raw)
+    raw = narx_spec(split={"train": 400, "test": 100})  # sample counts where fractions go
+    line = _error(raw)
+    assert "data.split.train" in line and "write the range [start, stop], e.g. [0, 400]" in line
     raw = narx_spec(cost="mse2")
     assert "cost" in _error(raw)
     raw = narx_spec()

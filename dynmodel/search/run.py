@@ -919,6 +919,10 @@ class Search:
             model = self._keep(e, level, past)
             if model is not None or past:
                 return model
+        if self._held_out_only():
+            model = self._keep(e, level, False, last=True)
+            if model is not None:
+                return model
         seed = s.median_seed if s.median_seed is not None else int(self.spec.seed)
         layout = self.final_layouts[0] if self.mode == "tail" else Layout("full")
         if e.stands_screened:  # as it was validated: its screening variant, on the screening samples of all the data
@@ -940,7 +944,7 @@ class Search:
         if not results or results[0].model is None:
             raise DynmodelError(
                 f"the chosen candidate ({e.label}) failed when fitted on the whole training split: "
-                f"{results[0].message if results else 'no result'}",
+                f"{(results[0].message or '').split(' Fix: ')[0] if results else 'no result'}",
                 f"{self.spec.source}: model",
                 "rerun the search with another seed, or fit a family directly",
             )
@@ -951,11 +955,21 @@ class Search:
         assert r.model is not None  # checked above
         return r.model.to_model()
 
-    def _keep(self, e: Entry, level: str, past_limit: bool):
+    def _held_out_only(self) -> bool:
+        """Cross-validated data without a validation split (``split: {train: 0.7, test: 0.3}`` on a short
+        record, or recordings left out in turn, none with a validation part): a fit on the whole training split
+        would have nothing to choose its terms, ridge factor or training length on (the NARX default's term
+        search, the annealed network's schedule: each refuses), so a fold's fit is kept, validated where it was
+        held out."""
+        return self.mode in ("folds", "recordings") and not self.ds.n_scored("validation")
+
+    def _keep(self, e: Entry, level: str, past_limit: bool, last: bool = False):
         """The model of a fit of ``e`` already made at ``level``: its median seed's, on the layout that trained on
-        the most samples (a recording or block left out; ties: the first), one that passed its own band check
-        when there is one; with a note when the safety limit made it stand in for the fit on the spec's own
-        layout. None when no fitted model was kept (the next candidate is tried)."""
+        the most samples (a recording or block left out; ties: the first; ``last``: of blocks in time, the one
+        held out last, a validation that follows its training as a test does), one that passed its own band check
+        when there is one; with a note when the safety limit (or, ``last``, the missing validation split) made it
+        stand in for the fit on the spec's own layout. None when no fitted model was kept (the next candidate is
+        tried)."""
         s = e.summaries[level]
         fits = [r for r in e.results_at(level) if r.seed == s.median_seed and r.key in self.kept]
         if not fits:
@@ -964,8 +978,23 @@ class Search:
         def trained(r: TaskResult) -> int:
             return view(self.ds, Layout(**r.layout)).n_scored("train")
 
-        pick = min(fits, key=lambda r: (not r.checks.get("ok", False), -trained(r), r.key))
+        def order(r: TaskResult) -> tuple:
+            held = -Layout(**r.layout).fold if last and r.layout.get("kind") == "fold" else -trained(r)
+            return (not r.checks.get("ok", False), held, r.key)
+
+        pick = min(fits, key=order)
         layout = Layout(**pick.layout)
+        if last:
+            how = (
+                f"with {layout.label}"
+                if layout.kind == "recording"
+                else f"without the last 1/{layout.folds} of every training recording, held out to validate it"
+            )
+            self.notes.append(
+                f"there is no validation split, so the model kept is {e.label} as fitted {how}: fitted on the whole "
+                "training split it would have nothing to choose its size or training length on (add a validation "
+                "split, e.g. split: {train: 0.6, validation: 0.2, test: 0.2}, to fit it on more data)"
+            )
         if past_limit and (level == "screen" or self.mode in ("recordings", "folds", "phase")):
             how = (
                 f"as screened ({layout.label}, its screening variant)"
@@ -1133,6 +1162,13 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         lines.append(
             f"ranking: free-run NMSE on the validation split ({ctx.n_validation} scored samples); candidates are "
             f"screened on {n} training samples first, the best refitted on all {ctx.n_train}"
+        )
+    if mode in ("folds", "recordings") and not ds.n_scored("validation"):
+        kept = "the last block held out" if mode == "folds" else "the recording left out whose fit trained on the most"
+        lines.append(
+            f"final model: there is no validation split, so the chosen candidate is kept as fitted with {kept} "
+            "(a fit on the whole training split would have nothing to choose its size on); add a validation "
+            "split, e.g. split: {train: 0.6, validation: 0.2, test: 0.2}, to fit it on more data"
         )
     if ctx.max_warmup is not None:
         lines.append(f"the protocol lets a run start from at most {ctx.max_warmup} measured outputs")
