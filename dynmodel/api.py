@@ -28,10 +28,7 @@ from .errors import DataError, ParameterError, SpecError
 from .family import Family, Progress, no_progress
 from .metrics import COSTS
 from .model import FittedModel
-from .spec import DataCommon, EvaluationSpec, Spec, parse_yaml, validate_spec, validation_summary
-
-#: ``data.path`` of a model fitted on recordings given in Python
-IN_MEMORY = "<arrays>"
+from .spec import IN_MEMORY, DataCommon, EvaluationSpec, Spec, parse_yaml, validate_spec, validation_summary
 
 
 class ArrayData(DataCommon):

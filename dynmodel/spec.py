@@ -44,6 +44,9 @@ class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
 
+#: ``data.path`` of recordings given in Python (``dynmodel.fit(spec, data=...)``), never a file
+IN_MEMORY = "<arrays>"
+
 SplitBound = Union[
     Annotated[float, Field(gt=0.0, le=1.0)], tuple[Annotated[int, Field(ge=0)], Annotated[int, Field(ge=0)]]
 ]
@@ -595,9 +598,10 @@ def spec_model() -> type[Spec]:
 
 
 def _resolve_paths(p: Any, resolve) -> Any:
-    """Every file name of a ``path`` value (a name, {input, output}, or a list of either) made absolute."""
+    """Every file name of a ``path`` value (a name, {input, output}, or a list of either) made absolute; the
+    marker of recordings given in Python (:data:`IN_MEMORY`) kept as it is."""
     if isinstance(p, str):
-        return str(resolve(p))
+        return p if p == IN_MEMORY else str(resolve(p))
     if isinstance(p, dict):
         return {k: str(resolve(v)) for k, v in p.items()}
     return [_resolve_paths(x, resolve) for x in p]

@@ -97,6 +97,25 @@ def test_recordings_and_separate_validation_match_the_spec(tmp_path):
     assert from_files.metrics["validation"]["samples"] == 498  # the separate recording, less the 2 initial values
 
 
+def test_auto_on_arrays_equals_auto_on_the_same_samples_in_a_file(tmp_path, system):
+    """``dynmodel.fit(spec, data=(u, y))`` with ``family: auto``: every fit of the search reads the samples
+    given. The marker path of samples given in Python was made absolute like a file name, so each fit looked
+    for a file that does not exist and the search ended "no candidate gave a usable model"."""
+    from dynmodel.search import search_options
+
+    (u, y), (ut, yt) = system
+    csv = write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    spec = {"name": "auto-arrays", "model": {"family": "auto", "params": {"budget": 2, "families": ["narx"]}}}
+    with search_options(workers=1):
+        from_data = dynmodel.fit(spec, data=(u, y))
+        from_file = dynmodel.fit({**spec, "data": {"path": str(csv), "input": ["u"], "output": ["y"]}})
+    assert from_data.search["winner"] == from_file.search["winner"]
+    assert from_data.spec["data"]["path"] == "<arrays>"
+    warm = from_data.warmup
+    np.testing.assert_array_equal(from_data.predict(ut, yt[:warm]), from_file.predict(ut, yt[:warm]))
+    assert from_data.score(ut, yt) > 0.99
+
+
 def test_score_is_the_r2_of_the_free_run(system):
     sklearn_metrics = pytest.importorskip("sklearn.metrics")
     (u, y), (ut, yt) = system

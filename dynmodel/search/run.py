@@ -41,6 +41,7 @@ from ..data.repeats import repeat_note, repeats_training
 from ..errors import DynmodelError
 from ..extensions import merge
 from ..family import Progress, no_progress
+from ..spec import IN_MEMORY
 from .checks import failed_split
 from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, REFERENCE_WORKERS, TASK_OVERHEAD, Budget, Group
@@ -404,7 +405,7 @@ class Search:
         self.screen_layouts = (
             self.final_layouts if self.ranked_on.blocked else [self._screened(x) for x in self.final_layouts]
         )
-        self.in_memory = str(spec.resolved()["data"].get("path")) == "<arrays>"
+        self.in_memory = spec.resolved()["data"].get("path") == IN_MEMORY
         self.base = self._base_spec()
 
     @property
