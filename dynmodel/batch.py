@@ -85,6 +85,7 @@ class ModelArrays:
     train_input: Any = None
     train_input_lengths: Any = None
     train_output: Any = None
+    search: dict[str, Any] | None = None  # family auto: the record of the search that chose the model
 
     @classmethod
     def from_model(cls, model) -> ModelArrays:
@@ -104,6 +105,7 @@ class ModelArrays:
             model.train_input,
             model.train_input_lengths,
             model.train_output,
+            None if model.search is None else _jsonable(model.search),
         )
 
     def to_model(self):
@@ -129,6 +131,7 @@ class ModelArrays:
             self.train_input,
             self.train_input_lengths,
             self.train_output,
+            search=self.search,
         )
 
 

@@ -438,6 +438,35 @@ def test_metrics_are_bit_identical_serial_pooled_and_on_dask(tmp_path, local_poo
     assert dynmodel.load(tmp_path / "pool" / "models" / f"{best}.h5").metrics == runs["serial"][best]["metrics"]
 
 
+def test_family_auto_sweeps_like_any_family_on_a_pool_and_on_dask(tmp_path, local_pool, dask_cluster):
+    """A sweep of ``family: auto`` (here over seeds) was refused ("unknown family 'auto'"). Each point's
+    search runs inside its worker (in-process there), the numbers are the same serial, pooled and on Dask, a
+    point's spec fitted alone gives them too, and a kept model file holds the record of its search."""
+    from dynmodel.search import search_options
+
+    raw = tiny(n=1500)
+    raw["model"] = {"family": "auto", "params": {"budget": 2, "families": ["narx"], "seeds": 1}}
+    write_yaml(tmp_path / "spec.yaml", raw)
+    grid = {"seed": [0, 1]}
+    serial = dynmodel.sweep(tmp_path / "spec.yaml", grid, executor=InProcessExecutor(), out=tmp_path / "serial")
+    pooled = dynmodel.sweep(tmp_path / "spec.yaml", grid, executor=local_pool, out=tmp_path / "pool", keep="all")
+    on_dask = dynmodel.sweep(tmp_path / "spec.yaml", grid, executor=dask_cluster, out=tmp_path / "dask")
+    for result in (serial, pooled, on_dask):
+        assert result.counts()["ok"] == 2
+    runs = {name: results(tmp_path / name) for name in ("serial", "pool", "dask")}
+    for key, point in runs["serial"].items():
+        assert point["metrics"]["test"]["nmse"] < 1.0
+        for name in ("pool", "dask"):
+            assert runs[name][key]["metrics"] == point["metrics"], (name, key)
+    key = sorted(runs["serial"])[0]
+    kept = dynmodel.load(tmp_path / "pool" / "models" / f"{key}.h5")
+    with search_options(workers=1):
+        alone = dynmodel.fit(dynmodel.load_spec(tmp_path / "pool" / "specs" / f"{key}.yaml"))
+    assert kept.metrics == alone.metrics == runs["serial"][key]["metrics"]
+    assert kept.search is not None and kept.search["winner"] == alone.search["winner"]
+    assert kept.family.name == alone.family.name != "auto"
+
+
 def test_pool_workers_run_single_threaded(local_pool):
     from dynmodel_test_sleepy import worker_facts
 

@@ -69,9 +69,11 @@ def plan(spec: Spec | Mapping[str, Any] | str | Path, grid: Any) -> Plan:
     the_grid = load_grid(grid) if isinstance(grid, (str, Path)) else parse_grid(grid, "<grid>")
     points = build_points(raw, base_dir, the_grid, loaded.name)
     from .. import registry
+    from ..search import AUTO
 
     families = {p.raw["model"]["family"] for p in points}
-    stochastic = any(getattr(registry.family(f), "stochastic", True) for f in families)
+    # family auto draws its random candidates' seeds from the spec's seed
+    stochastic = any(f == AUTO or getattr(registry.family(f), "stochastic", True) for f in families)
     return Plan(
         loaded.name,
         source,
