@@ -160,6 +160,11 @@ def test_time_column_checks(tmp_path):
         },
         "model": {"family": "narx"},
     }
+    # the rig's gap of 20 steps: samples missing, not a jitter to interpolate over
+    with pytest.raises(DataError, match=r"jump by 0\.207232 s after t = 0\.492964 s \(sample 49; .*Fix: cut the file"):
+        load_dataset(make_spec(raw, tmp_path))
+    jitter = np.loadtxt(path)
+    np.savetxt(path, np.vstack([jitter[:50], jitter[50:] - [200.0, 0, 0]]), delimiter="\t", fmt="%.10g")
     with pytest.raises(DataError, match="not uniform.*Fix: add 'resample: 0.0099"):
         load_dataset(make_spec(raw, tmp_path))
     uniform, _ = _stamped(tmp_path, "u.tsv", jitter=False)
@@ -167,7 +172,13 @@ def test_time_column_checks(tmp_path):
     np.savetxt(uniform, np.vstack([data[:50], data[50:] - [200.0, 0, 0]]), delimiter="\t", fmt="%.10g")
     raw["data"]["path"] = str(uniform)
     assert load_dataset(make_spec(raw, tmp_path)).sampling_time == pytest.approx(0.01)
+    gap = np.loadtxt(uniform)
+    gap[300:, 0] += 500.0  # 50 samples missing after sample 299 (stamps in ms)
+    np.savetxt(uniform, gap, delimiter="\t", fmt="%.10g")
+    with pytest.raises(DataError, match=r"jump by 0\.51 s after t = .* \(sample 299; .*samples are missing.*Fix: cut"):
+        load_dataset(make_spec(raw, tmp_path))
     back = np.loadtxt(uniform)
+    back[300:, 0] -= 500.0
     back[10, 0] = back[8, 0]
     np.savetxt(uniform, back, delimiter="\t", fmt="%.10g")
     with pytest.raises(DataError, match="do not increase at sample 10"):

@@ -52,6 +52,16 @@ def uniform(t: np.ndarray, data: np.ndarray, step: float | None, where: str) -> 
         med = float(np.median(dt))
         worst = float(np.max(np.abs(dt - med)))
         if worst > UNIFORM_TOLERANCE * med:
+            gaps = np.flatnonzero(dt > GAP_WARNING * med)
+            if gaps.size:  # missing samples: interpolation would invent the signals there
+                g = int(gaps[np.argmax(dt[gaps])])
+                raise DataError(
+                    f"the time stamps jump by {dt[g]:.6g} s after t = {t[g]:.6g} s (sample {g}; median step "
+                    f"{med:.6g} s{f', {gaps.size} such gaps' if gaps.size > 1 else ''}): samples are missing there",
+                    where,
+                    "cut the file at the gap into recordings of their own (data.path: [a, b]), or add "
+                    f"'resample: {med:.6g}' to bridge it by linear interpolation",
+                )
             raise DataError(
                 f"the time stamps are not uniform (steps from {dt.min():.6g} to {dt.max():.6g} s, median {med:.6g} s)",
                 where,
