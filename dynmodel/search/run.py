@@ -994,7 +994,7 @@ class Search:
             self.notes.append(
                 f"there is no validation split, so the model kept is {e.label} as fitted {how}: fitted on the whole "
                 "training split it would have nothing to choose its size or training length on (add a validation "
-                "split, e.g. split: {train: 0.6, validation: 0.2, test: 0.2}, to fit it on more data)"
+                f"split, e.g. split: {_with_validation(self.spec)}, to fit it on more data)"
             )
         if past_limit and (level == "screen" or self.mode in ("recordings", "folds", "phase")):
             how = (
@@ -1131,6 +1131,12 @@ def tail_note(folds: int, planned: bool = False) -> str:
     )
 
 
+def _with_validation(spec: Spec) -> str:
+    """A split with a validation part, for a spec that has none: its test part kept when it has one."""
+    split = spec.resolved()["data"].get("split") or {}
+    return "{train: 0.6, validation: 0.2, test: 0.2}" if split.get("test") else "{train: 0.8, validation: 0.2}"
+
+
 def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
     """What ``dynmodel validate`` says about an auto spec: the families, the budget, the layout, the
     protocol limits and the starting candidates (nothing is fitted)."""
@@ -1169,7 +1175,7 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         lines.append(
             f"final model: there is no validation split, so the chosen candidate is kept as fitted with {kept} "
             "(a fit on the whole training split would have nothing to choose its size on); add a validation "
-            "split, e.g. split: {train: 0.6, validation: 0.2, test: 0.2}, to fit it on more data"
+            f"split, e.g. split: {_with_validation(spec)}, to fit it on more data"
         )
     if ctx.max_warmup is not None:
         lines.append(f"the protocol lets a run start from at most {ctx.max_warmup} measured outputs")
