@@ -8,6 +8,7 @@ validation error; the result does not depend on the number of workers; Ctrl-C ke
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import threading
@@ -876,6 +877,37 @@ def _three_recordings(tmp_path: Path, budget: float) -> tuple[dict[str, Any], An
     raw["data"] = {"path": [f"run{i}.csv" for i in range(3)], "input": ["u"], "output": ["y"]}
     raw["data"]["split"] = {"train": 0.7, "validation": 0.3}
     return raw, load_dataset(validate_spec(raw, "<test>", tmp_path))
+
+
+def test_a_final_fit_that_fails_hands_the_choice_to_the_next_best(tmp_path, monkeypatch):
+    """The chosen candidate's refit on the whole training split failed (here made to: its pool limited to one
+    monomial): the search ended with exit 2 and no model after all its work. The next best is now taken, and
+    the record says why the first was passed over."""
+    from dynmodel.search.run import Search
+
+    broken: list[str] = []
+    make_task = Search._task
+
+    def task(self, key, raw, kind, layout):
+        if "|model|" in key and not broken:
+            broken.append(key.split("|")[0])
+            raw = copy.deepcopy(raw)
+            raw["model"]["params"]["max_pool"] = 1
+        return make_task(self, key, raw, kind, layout)
+
+    monkeypatch.setattr(Search, "_task", task)
+    _data(tmp_path, n=1500)
+    raw = _raw(families=["narx"], budget=4)
+    raw["data"]["split"] = {"train": 0.8, "validation": 0.2}  # 300 validation samples: cross-validated, refitted
+    model, _ = _fit(raw, tmp_path)
+    rec = model.search
+    assert rec["mode"] == "folds" and broken
+    first = next(c for c in rec["candidates"] if c["key"] == broken[0])
+    assert "failed when fitted on the whole training split: " in first["verdict"]
+    assert "max_pool = 1" in first["verdict"]
+    assert rec["winner"] != broken[0]
+    assert any("validated best but failed when fitted on the whole training split" in n for n in rec["notes"])
+    assert model.metrics["test"]["nmse"] < 1.0
 
 
 def test_recordings_left_out_without_a_validation_split_keep_a_fit_validated(tmp_path):

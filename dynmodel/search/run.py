@@ -942,16 +942,16 @@ class Search:
         if not results and self._past_limit():  # the limit was reached during the fit
             self._drop_abandoned()
             return self._keep(e, level, True)
-        if not results or results[0].model is None:
-            raise DynmodelError(
-                f"the chosen candidate ({e.label}) failed when fitted on the whole training split: "
-                f"{(results[0].message or '').split(' Fix: ')[0] if results else 'no result'}",
-                f"{self.spec.source}: model",
-                "rerun the search with another seed, or fit a family directly",
-            )
+        if not results or results[0].model is None:  # the next best is tried: one fit must not waste the search
+            why = (results[0].message or "").split(" Fix: ")[0] if results else "no result"
+            e.verdict = f"failed when fitted on the whole training split: {why}"
+            s.failure = f"failed when fitted on the whole training split: {why}"
+            self.notes.append(f"{e.label} validated best but failed when fitted on the whole training split: {why}")
+            return None
         r: TaskResult = results[0]  # type: ignore[assignment]
         if not cancel_set and not r.checks.get("ok", False):
             e.verdict = f"rejected after its final fit: {failed_split(r.checks)}"
+            s.failure = "failed its final fit's band check"
             return None
         assert r.model is not None  # checked above
         return r.model.to_model()
@@ -1043,8 +1043,9 @@ class Search:
             if model is not None:
                 self.entries[key].verdict = "chosen"
                 break
-            self.entries[key].summaries[level].ok = False
-            self.entries[key].summaries[level].failure = "failed its final fit's band check"
+            failed = self.entries[key].summaries[level]
+            failed.ok = False
+            failed.failure = failed.failure or "failed its final fit's band check"
         return SearchResult(model, self.record(key if model is not None else None, choice, level))
 
     # ------------------------------------------------------------------ the record
