@@ -9,6 +9,14 @@ many lags at level alpha (per lag, the 99 % bound is 2.576 s). Score: the share 
 mean square that the raw input at lags k-2 .. k+2 explains beyond the input at the lags the model
 already sees (and beyond a drift: two slow functions of time).
 
+A model with output feedback remembers long (its memory counts every sample an input impulse still moves the
+output), so a dead time inside that memory went unscanned: a plant that acts 25 samples after its input, modeled
+by a NARX default on input lags 0..6 with feedback (memory 124 samples), was named "inadequate-structure" and
+extended by more lags to no gain. So the window of 5 lags around an input's dead time read from the data
+(:func:`dynmodel.data.delay.dead_time`, on the measured segments) is scanned too, counted in the Sidak bound,
+when the model's own impulse response reaches 10 % of its peak at least 3 samples before that dead time (it acts
+before the system does); the share is then taken beyond the input at lags below the window.
+
 A second, out-of-sample test keeps its power when other misfits dominate the residual (a delayed path
 hidden behind the direction dependence of friction): the lag is located on the training rows only (the
 same prewhitened cross-correlation), and the input at lags k-2 .. k+2 must then predict the residual of
@@ -22,15 +30,49 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from dynmodel.data.delay import MIN_DELAY, dead_time
 from dynmodel.diagnose.context import Context
 from dynmodel.diagnose.correlation import ar_coefficients, ar_filter, bartlett_sd, crosscorr, sidak_z
 from dynmodel.diagnose.dependence import holdout_share, lagged, partial_share
 from dynmodel.diagnose.detector import Detector, Finding
+from dynmodel.diagnose.memory import impulse_response
 
 from ._extend import delay_lines
 
 Z99 = float(stats.norm.isf(0.005))
 MIN_LAGS = 10
+#: the model acts on an input from the first lag where its impulse response reaches this share of its peak
+ONSET = 0.1
+#: lags scanned on either side of a dead time the model does not reproduce
+HALF_WINDOW = 2
+
+
+def unmatched_dead_times(ctx: Context) -> dict[int, int]:
+    """{input index: dead time} for each input whose dead time in the data (the shortest over the outputs it acts
+    on, at least MIN_DELAY samples) the model does not reproduce: its impulse response reaches :data:`ONSET` of
+    its peak at least MIN_DELAY samples earlier."""
+    out: dict[int, int] = {}
+    for j in range(len(ctx.input_names)):
+        found = [dead_time(ctx.inputs(j), ctx.outputs(k)) for k in range(len(ctx.output_names))]
+        delays = [d for d in found if d is not None]
+        if not delays or min(delays) < MIN_DELAY:
+            continue
+        d = min(delays)
+        response = impulse_response(ctx.fit, j, max(2 * d, 20))
+        if response is None or not response.max() > 0:
+            continue
+        onset = int(np.flatnonzero(response >= ONSET * response.max())[0])
+        if onset <= d - MIN_DELAY:
+            out[j] = d
+    return out
+
+
+def _scanned(memory: int, max_lag: int, dead: int | None) -> np.ndarray:
+    """The lags searched: beyond the memory, and around a dead time the model does not reproduce."""
+    lags = set(range(memory + 1, max_lag + 1))
+    if dead is not None:
+        lags |= set(range(max(1, dead - HALF_WINDOW), min(dead + HALF_WINDOW, max_lag) + 1))
+    return np.array(sorted(lags), dtype=int)
 
 
 def _fit_parts(ctx: Context, series: list[np.ndarray]) -> list[np.ndarray]:
@@ -43,9 +85,10 @@ def _fit_parts(ctx: Context, series: list[np.ndarray]) -> list[np.ndarray]:
     return out
 
 
-def _locate(ctx: Context, memory: int, max_lag: int, parts):
+def _locate(ctx: Context, memory: int, max_lag: int, parts, dead: dict[int, int]):
     """(z, input, output, lag, r, sd, AR order, lags searched) of the largest prewhitened cross-correlation
-    beyond the memory, on the stretches ``parts`` makes of the segments; None when too short."""
+    beyond the memory (or around a dead time of ``dead``), on the stretches ``parts`` makes of the segments;
+    None when too short."""
     best = None
     for j in range(len(ctx.input_names)):
         u_segs = parts(ctx.inputs(j))
@@ -57,7 +100,9 @@ def _locate(ctx: Context, memory: int, max_lag: int, parts):
             ew = ar_filter(parts(ctx.residuals(k)), phi)
             r = crosscorr(ew, uw, max_lag)
             sd = bartlett_sd(ew, uw, max_lag)
-            lags = np.arange(memory + 1, max_lag + 1)
+            lags = _scanned(memory, max_lag, dead.get(j))
+            if lags.size == 0:
+                continue
             z = np.abs(np.nan_to_num(r[lags])) / sd[lags]
             i = int(np.argmax(z))
             cand = (float(z[i]), j, k, int(lags[i]), r, sd, len(phi), len(lags))
@@ -70,21 +115,30 @@ class MissingDelay(Detector):
     cause = "missing-delay"
     description = "residual correlated with an input at a lag beyond the model's memory (thesis 6.3.2)"
     priority = 4
-    applies = "the model's memory must leave at least 10 lags of the search horizon"
+    applies = (
+        "the model's memory must leave at least 10 lags of the search horizon, or the data show a dead time the "
+        "model does not reproduce"
+    )
 
     def detect(self, ctx: Context) -> Finding | None:
         memory = ctx.memory
         max_lag = ctx.max_lag
+        dead = unmatched_dead_times(ctx)
         if max_lag - memory < MIN_LAGS:
-            return None  # the model remembers (nearly) the whole search horizon
-        best = _locate(ctx, memory, max_lag, lambda x: x)
+            if not dead:
+                return None  # the model remembers (nearly) the whole search horizon
+            memory = max_lag  # only the dead times' windows are scanned
+        best = _locate(ctx, memory, max_lag, lambda x: x, dead)
+        if best is None:
+            return None
         zmax, j, k, lag, r, sd, order, m = best
         p_lag = 2 * stats.norm.sf(zmax)
         p_sidak = float(-np.expm1(m * np.log1p(-min(p_lag, 1 - 1e-16)))) if p_lag > 0 else 0.0
         zcrit = sidak_z(ctx.settings.alpha / 2, m)
-        short = sorted(set(np.linspace(0, memory, num=min(memory + 1, 12)).round().astype(int).tolist()))
 
         def design(j: int, k: int, lag: int):
+            top = memory if lag > memory else max(lag - HALF_WINDOW - 1, 0)  # the lags the model already sees
+            short = sorted(set(np.linspace(0, top, num=min(top + 1, 12)).round().astype(int).tolist()))
             window = [max(0, lag - 2) + i for i in range(5)]
             # rows whose lagged inputs lie inside their segment (no padding); the residual's trend in the base
             keep = np.concatenate([np.arange(s.n) >= window[-1] for s in ctx.segments])
@@ -96,7 +150,7 @@ class MissingDelay(Detector):
         share = partial_share(e, base, feats) if e.size > 20 else 0.0
         # out of sample: the lag located on the training rows, judged on the validation rows
         check = ctx.check_rows()
-        fit_best = _locate(ctx, memory, max_lag, lambda x: _fit_parts(ctx, x))
+        fit_best = _locate(ctx, memory, max_lag, lambda x: _fit_parts(ctx, x), dead)
         holdout = None
         if fit_best is not None:
             _, j2, k2, lag2, *_ = fit_best
@@ -129,14 +183,22 @@ class MissingDelay(Detector):
             "p_out_of_sample": p_out,
             "decided_by": decided,
             "alpha": ctx.settings.alpha,
-            "lags_searched": [int(memory + 1), int(ctx.max_lag)],
-            "model_memory_samples": int(memory),
+            "lags_searched": [int(memory + 1), int(ctx.max_lag)] if memory < ctx.max_lag else [],
+            "dead_time_windows": {
+                ctx.input_names[i]: [max(1, d - HALF_WINDOW), d + HALF_WINDOW] for i, d in dead.items()
+            },
+            "model_memory_samples": int(ctx.memory),
             "prewhitening_ar_order": order,
             "explained_share": share,
         }
+        where = (
+            f"model memory {ctx.memory} samples"
+            if lag > memory
+            else f"the dead time the data show is {dead.get(j)} samples, and the model acts on {name} earlier"
+        )
         summary = (
-            f"{ctx.output_names[k]} residual depends on {name} {lag} samples ({lag * st:.4g} s) back (model memory "
-            f"{memory} samples): r = {r[lag]:.3f} against a bound of {zcrit * sd[lag]:.3f}; the input there explains "
+            f"{ctx.output_names[k]} residual depends on {name} {lag} samples ({lag * st:.4g} s) back ({where}): "
+            f"r = {r[lag]:.3f} against a bound of {zcrit * sd[lag]:.3f}; the input there explains "
             f"{100 * share:.1f} % of the residual"
             + (" out of sample" if decided == "out of sample" else "")
             + f" (p = {p:.2g})"
