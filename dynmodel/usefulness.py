@@ -140,7 +140,7 @@ def assess(
         if value >= POOR_NMSE or (ref is not None and value >= ref):
             worse = f", no better than the training mean's {ref:.3g} %" if ref is not None and value >= ref else ""
             notes.append(Note("poor", split, f"its {split} NMSE is {value:.3g} %{worse}", float(value)))
-    notes += carry_over(metrics)
+    notes += carry_over(metrics, search_validation(model))
     if ds is not None and bad is None:
         dep = input_dependence(model, ds, runs=runs)
         if dep is not None and dep < INPUT_DEPENDENCE:
@@ -156,10 +156,23 @@ def assess(
     return notes
 
 
-def carry_over(metrics: Mapping[str, Any]) -> list[Note]:
+def search_validation(model: FittedModel) -> float | None:
+    """The validation NMSE the search chose a ``family: auto`` model on (held out of its fits: blocks, recordings
+    or a tail when the spec has no validation split), None for any other model."""
+    record = getattr(model, "search", None) or {}
+    winner = next((c for c in record.get("candidates", []) if c.get("key") == record.get("winner")), None)
+    value = (winner or {}).get("validation_nmse")
+    return float(value) if value is not None and np.isfinite(value) else None
+
+
+def carry_over(metrics: Mapping[str, Any], searched: float | None = None) -> list[Note]:
     """``does-not-carry-over`` notes: test splits (``test``, ``test:<name>``) whose NMSE is at least
-    :data:`CARRY_OVER_FACTOR` x the validation NMSE and at least :data:`CARRY_OVER_FLOOR` %."""
+    :data:`CARRY_OVER_FACTOR` x the validation NMSE and at least :data:`CARRY_OVER_FLOOR` %. Without a
+    validation split, ``searched``: the validation NMSE of the search that chose the model."""
     validation = (metrics.get("validation") or {}).get("nmse")
+    what = "validation NMSE"
+    if (validation is None or not np.isfinite(validation)) and searched is not None:
+        validation, what = searched, "validation NMSE in the search (held out of its fits)"
     if validation is None or not np.isfinite(validation):
         return []
     out = []
@@ -172,7 +185,7 @@ def carry_over(metrics: Mapping[str, Any]) -> list[Note]:
                 Note(
                     "does-not-carry-over",
                     split,
-                    f"its {split} NMSE ({value:.3g} %) is {value / max(validation, 1e-12):.0f} x its validation NMSE "
+                    f"its {split} NMSE ({value:.3g} %) is {value / max(validation, 1e-12):.0f} x its {what} "
                     f"({validation:.3g} %)",
                     float(value),
                 )
