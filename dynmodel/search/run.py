@@ -920,7 +920,7 @@ class Search:
             model = self._keep(e, level, past)
             if model is not None or past:
                 return model
-        if self._held_out_only():
+        if keeps_a_fold(self.mode, self.ds):
             model = self._keep(e, level, False, last=True)
             if model is not None:
                 return model
@@ -944,9 +944,8 @@ class Search:
             return self._keep(e, level, True)
         if not results or results[0].model is None:  # the next best is tried: one fit must not waste the search
             why = (results[0].message or "").split(" Fix: ")[0] if results else "no result"
-            e.verdict = f"failed when fitted on the whole training split: {why}"
-            s.failure = f"failed when fitted on the whole training split: {why}"
-            self.notes.append(f"{e.label} validated best but failed when fitted on the whole training split: {why}")
+            s.failure = f"failed when fitted on the whole training split: {why}"  # its verdict when ranked again
+            self.notes.append(f"{e.label} validated best but {s.failure}")
             return None
         r: TaskResult = results[0]  # type: ignore[assignment]
         if not cancel_set and not r.checks.get("ok", False):
@@ -955,14 +954,6 @@ class Search:
             return None
         assert r.model is not None  # checked above
         return r.model.to_model()
-
-    def _held_out_only(self) -> bool:
-        """Cross-validated data without a validation split (``split: {train: 0.7, test: 0.3}`` on a short
-        record, or recordings left out in turn, none with a validation part): a fit on the whole training split
-        would have nothing to choose its terms, ridge factor or training length on (the NARX default's term
-        search, the annealed network's schedule: each refuses), so a fold's fit is kept, validated where it was
-        held out."""
-        return self.mode in ("folds", "recordings") and not self.ds.n_scored("validation")
 
     def _keep(self, e: Entry, level: str, past_limit: bool, last: bool = False):
         """The model of a fit of ``e`` already made at ``level``: its median seed's, on the layout that trained on
@@ -1132,6 +1123,14 @@ def tail_note(folds: int, planned: bool = False) -> str:
     )
 
 
+def keeps_a_fold(mode: str, ds: Dataset) -> bool:
+    """Cross-validated data without a validation split (``split: {train: 0.7, test: 0.3}`` on a short record, or
+    recordings left out in turn, none with a validation part): a fit on the whole training split would have
+    nothing to choose its terms, ridge factor or training length on (the NARX default's term search, the annealed
+    network's schedule: each refuses), so the model kept is a fold's fit, validated where it was held out."""
+    return mode in ("folds", "recordings") and not ds.n_scored("validation")
+
+
 def _with_validation(spec: Spec) -> str:
     """A split with a validation part, for a spec that has none: its test part kept when it has one."""
     split = spec.resolved()["data"].get("split") or {}
@@ -1171,7 +1170,7 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
             f"ranking: free-run NMSE on the validation split ({ctx.n_validation} scored samples); candidates are "
             f"screened on {n} training samples first, the best refitted on all {ctx.n_train}"
         )
-    if mode in ("folds", "recordings") and not ds.n_scored("validation"):
+    if keeps_a_fold(mode, ds):
         kept = "the last block held out" if mode == "folds" else "the recording left out whose fit trained on the most"
         lines.append(
             f"final model: there is no validation split, so the chosen candidate is kept as fitted with {kept} "

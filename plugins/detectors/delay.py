@@ -13,7 +13,7 @@ A model with output feedback remembers long (its memory counts every sample an i
 output), so a dead time inside that memory went unscanned: a plant that acts 25 samples after its input, modeled
 by a NARX default on input lags 0..6 with feedback (memory 124 samples), was named "inadequate-structure" and
 extended by more lags to no gain. So the window of 5 lags around an input's dead time read from the data
-(:func:`dynmodel.data.delay.dead_time`, on the measured segments) is scanned too, counted in the Sidak bound,
+(:func:`dynmodel.data.delay.dead_times`, on the measured segments) is scanned too, counted in the Sidak bound,
 when the model's own impulse response reaches 10 % of its peak at least 3 samples before that dead time (it acts
 before the system does); the share is then taken beyond the input at lags below the window.
 
@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from dynmodel.data.delay import MIN_DELAY, dead_time
+from dynmodel.data.delay import MIN_DELAY, dead_times
 from dynmodel.diagnose.context import Context
 from dynmodel.diagnose.correlation import ar_coefficients, ar_filter, bartlett_sd, crosscorr, sidak_z
 from dynmodel.diagnose.dependence import holdout_share, lagged, partial_share
@@ -48,16 +48,15 @@ HALF_WINDOW = 2
 
 
 def unmatched_dead_times(ctx: Context) -> dict[int, int]:
-    """{input index: dead time} for each input whose dead time in the data (the shortest over the outputs it acts
-    on, at least MIN_DELAY samples) the model does not reproduce: its impulse response reaches :data:`ONSET` of
-    its peak at least MIN_DELAY samples earlier."""
+    """{input index: dead time} for each input whose dead time in the data (:func:`dead_times` on the measured
+    segments) the model does not reproduce: its impulse response reaches :data:`ONSET` of its peak at least
+    MIN_DELAY samples earlier."""
+    found = dead_times([s.u for s in ctx.segments], [s.y for s in ctx.segments], ctx.input_names)
     out: dict[int, int] = {}
-    for j in range(len(ctx.input_names)):
-        found = [dead_time(ctx.inputs(j), ctx.outputs(k)) for k in range(len(ctx.output_names))]
-        delays = [d for d in found if d is not None]
-        if not delays or min(delays) < MIN_DELAY:
+    for j, name in enumerate(ctx.input_names):
+        d = found.get(name)
+        if d is None:
             continue
-        d = min(delays)
         response = impulse_response(ctx.fit, j, max(2 * d, 20))
         if response is None or not response.max() > 0:
             continue
@@ -67,9 +66,10 @@ def unmatched_dead_times(ctx: Context) -> dict[int, int]:
     return out
 
 
-def _scanned(memory: int, max_lag: int, dead: int | None) -> np.ndarray:
-    """The lags searched: beyond the memory, and around a dead time the model does not reproduce."""
-    lags = set(range(memory + 1, max_lag + 1))
+def _scanned(first: int, max_lag: int, dead: int | None) -> np.ndarray:
+    """The lags searched: ``first`` .. ``max_lag`` (beyond the memory), and around a dead time the model does not
+    reproduce."""
+    lags = set(range(first, max_lag + 1))
     if dead is not None:
         lags |= set(range(max(1, dead - HALF_WINDOW), min(dead + HALF_WINDOW, max_lag) + 1))
     return np.array(sorted(lags), dtype=int)
@@ -85,7 +85,7 @@ def _fit_parts(ctx: Context, series: list[np.ndarray]) -> list[np.ndarray]:
     return out
 
 
-def _locate(ctx: Context, memory: int, max_lag: int, parts, dead: dict[int, int]):
+def _locate(ctx: Context, first: int, max_lag: int, parts, dead: dict[int, int]):
     """(z, input, output, lag, r, sd, AR order, lags searched) of the largest prewhitened cross-correlation
     beyond the memory (or around a dead time of ``dead``), on the stretches ``parts`` makes of the segments;
     None when too short."""
@@ -100,7 +100,7 @@ def _locate(ctx: Context, memory: int, max_lag: int, parts, dead: dict[int, int]
             ew = ar_filter(parts(ctx.residuals(k)), phi)
             r = crosscorr(ew, uw, max_lag)
             sd = bartlett_sd(ew, uw, max_lag)
-            lags = _scanned(memory, max_lag, dead.get(j))
+            lags = _scanned(first, max_lag, dead.get(j))
             if lags.size == 0:
                 continue
             z = np.abs(np.nan_to_num(r[lags])) / sd[lags]
@@ -124,11 +124,11 @@ class MissingDelay(Detector):
         memory = ctx.memory
         max_lag = ctx.max_lag
         dead = unmatched_dead_times(ctx)
-        if max_lag - memory < MIN_LAGS:
-            if not dead:
-                return None  # the model remembers (nearly) the whole search horizon
-            memory = max_lag  # only the dead times' windows are scanned
-        best = _locate(ctx, memory, max_lag, lambda x: x, dead)
+        # beyond the memory unless the model remembers (nearly) the whole search horizon
+        first = memory + 1 if max_lag - memory >= MIN_LAGS else max_lag + 1
+        if first > max_lag and not dead:
+            return None
+        best = _locate(ctx, first, max_lag, lambda x: x, dead)
         if best is None:
             return None
         zmax, j, k, lag, r, sd, order, m = best
@@ -137,7 +137,7 @@ class MissingDelay(Detector):
         zcrit = sidak_z(ctx.settings.alpha / 2, m)
 
         def design(j: int, k: int, lag: int):
-            top = memory if lag > memory else max(lag - HALF_WINDOW - 1, 0)  # the lags the model already sees
+            top = memory if lag >= first else max(lag - HALF_WINDOW - 1, 0)  # the lags the model already sees
             short = sorted(set(np.linspace(0, top, num=min(top + 1, 12)).round().astype(int).tolist()))
             window = [max(0, lag - 2) + i for i in range(5)]
             # rows whose lagged inputs lie inside their segment (no padding); the residual's trend in the base
@@ -150,7 +150,7 @@ class MissingDelay(Detector):
         share = partial_share(e, base, feats) if e.size > 20 else 0.0
         # out of sample: the lag located on the training rows, judged on the validation rows
         check = ctx.check_rows()
-        fit_best = _locate(ctx, memory, max_lag, lambda x: _fit_parts(ctx, x), dead)
+        fit_best = _locate(ctx, first, max_lag, lambda x: _fit_parts(ctx, x), dead)
         holdout = None
         if fit_best is not None:
             _, j2, k2, lag2, *_ = fit_best
@@ -183,17 +183,17 @@ class MissingDelay(Detector):
             "p_out_of_sample": p_out,
             "decided_by": decided,
             "alpha": ctx.settings.alpha,
-            "lags_searched": [int(memory + 1), int(ctx.max_lag)] if memory < ctx.max_lag else [],
+            "lags_searched": [int(first), int(max_lag)] if first <= max_lag else [],
             "dead_time_windows": {
                 ctx.input_names[i]: [max(1, d - HALF_WINDOW), d + HALF_WINDOW] for i, d in dead.items()
             },
-            "model_memory_samples": int(ctx.memory),
+            "model_memory_samples": int(memory),
             "prewhitening_ar_order": order,
             "explained_share": share,
         }
         where = (
-            f"model memory {ctx.memory} samples"
-            if lag > memory
+            f"model memory {memory} samples"
+            if lag >= first
             else f"the dead time the data show is {dead.get(j)} samples, and the model acts on {name} earlier"
         )
         summary = (

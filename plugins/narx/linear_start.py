@@ -22,8 +22,6 @@ from .estimation import FreeRunProblem
 ITERATIONS = 20
 #: a pole of 1 / A(q) at or beyond this radius is pulled inside it before filtering
 _MAX_RADIUS = 0.9995
-
-
 #: the source of the constant term in :func:`_terms`
 _CONSTANT = -1
 
