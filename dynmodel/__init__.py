@@ -64,10 +64,22 @@ def sweep(spec, grid, executor=None, **options):
 
 
 def save(model, path):
-    """Write a FittedModel, or a family fitted on arrays, to an HDF5 model file (atomically)."""
-    from . import store
+    """Write a FittedModel, or a family fitted on arrays, to an HDF5 model file (atomically).
 
-    return store.save(model, path)
+    As ``dynmodel fit --out`` does, an existing file is replaced only when it is a dynmodel model file:
+    a CSV, a spec or any other file at ``path`` raises :class:`~dynmodel.errors.OutputError` and stays
+    as it was (delete it first if it really should go)."""
+    from . import store
+    from .family import Family
+    from .model import FittedModel
+    from .paths import check_output
+
+    if not isinstance(model, (FittedModel, Family)):
+        raise TypeError(
+            f"dynmodel.save writes a fitted model, not a {type(model).__name__}: pass the estimator after its "
+            "fit (or dynmodel.fit's result)"
+        )
+    return store.save(model, check_output(path, "model", option="dynmodel.save's path"))
 
 
 def load(path):

@@ -13,6 +13,7 @@ are not in a file, and the input and output names, sampling time and preprocessi
 from __future__ import annotations
 
 import numbers
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,11 +24,11 @@ from pydantic import Field, ValidationError
 
 from . import engine
 from .columns import is_pandas, is_recording_list, recordings, select
-from .data.dataset import SOURCE_KEYS, LoadedSource, load_dataset
-from .errors import DataError, ParameterError, SpecError
+from .data.dataset import SOURCE_KEYS, Dataset, LoadedSource, load_dataset
+from .errors import DataError, ModelWarning, ParameterError, SpecError
 from .family import Family, Progress, no_progress
 from .metrics import COSTS
-from .model import FittedModel
+from .model import FittedModel, Run
 from .spec import IN_MEMORY, DataCommon, EvaluationSpec, Spec, parse_yaml, validate_spec, validation_summary
 
 
@@ -156,8 +157,41 @@ def fit_arrays(
     spec = ArraySpec(family, data, cost, int(seed), EvaluationSpec(), separate=tuple(s for s in sources if s != "data"))
     ds = load_dataset(spec, sources)
     with progress_reporter(progress) as report:
-        model, _ = engine.fit_family(family, spec, ds, report)
+        model, runs = engine.fit_family(family, spec, ds, report)
+    warn_if_useless(model, ds, runs)
     return model
+
+
+def warn_if_useless(model: FittedModel, ds: Dataset, runs: list[Run]) -> None:
+    """A model fitted in Python is never silently useless: the findings of :func:`dynmodel.usefulness.assess`
+    go to ``model.assessment``, and the line ``dynmodel fit`` would print (a diverged free run included) is
+    issued as a :class:`~dynmodel.errors.ModelWarning`."""
+    from .usefulness import assess, stability_fix, summary_line
+
+    notes = assess(model, ds, runs)
+    model.assessment = notes
+    cost = model.spec.get("cost")
+    lines = [f"{n.text}: {stability_fix(model.family.stability_hint, cost)}" for n in notes if n.kind == "diverged"]
+    line = summary_line(notes, cost=cost, searched=model.search is not None, python=True)
+    if line:
+        lines.append(line)
+    for text in lines:
+        warnings.warn(text[0].upper() + text[1:], ModelWarning, stacklevel=_caller_level())
+
+
+def _caller_level() -> int:
+    """The ``stacklevel`` of the first frame outside dynmodel and its plugins: a warning points at the user's
+    line (``model.fit(u, y)``), not at the package's internals."""
+    import os
+    import sys
+
+    import dynmodel_plugins
+
+    ours = tuple(str(Path(p.__file__).resolve().parent) + os.sep for p in (sys.modules["dynmodel"], dynmodel_plugins))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(ours):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 # ---------------------------------------------------------------------------- dynmodel.fit(spec, data=...)
@@ -244,7 +278,8 @@ def fit_spec(
     sources = {k: (r, st, i, o) for k, (r, i, o) in loaded.items()}
     ds = load_dataset(validated, sources)
     with progress_reporter(progress) as report:
-        model, _ = engine.fit_dataset(validated, ds, report)
+        model, runs = engine.fit_dataset(validated, ds, report)
+    warn_if_useless(model, ds, runs)
     kept = ("path", "input", "output", "sampling_time")
     model.spec["data"] = {k: v for k, v in model.spec["data"].items() if k in kept or k not in SOURCE_KEYS}
     model.spec["data"]["path"] = IN_MEMORY

@@ -67,3 +67,9 @@ class Interrupted(DynmodelError):
     """The user stopped the command (Ctrl-C)."""
 
     exit_code = 130
+
+
+class ModelWarning(UserWarning):
+    """A model fitted with the Python API that is of little use (worse than the training mean, ignoring its
+    input, not carrying over to the test) or whose free run diverged: the line ``dynmodel fit`` prints
+    (:mod:`dynmodel.usefulness`), with what to try."""

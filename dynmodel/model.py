@@ -75,6 +75,8 @@ class FittedModel:
     train_input_lengths: np.ndarray | None = None
     train_output: np.ndarray | None = None  # measured training outputs (tune-in of external-mode checks)
     search: dict[str, Any] | None = None  # family: auto: the search that chose this model (docs/auto.md)
+    #: what :func:`dynmodel.usefulness.assess` found after a fit in Python (None: not assessed, e.g. loaded)
+    assessment: list[Any] | None = None
 
     def __post_init__(self) -> None:
         self.family.model_ = self  # the family's predict / score / dynmodel.save work in physical units

@@ -214,8 +214,21 @@ def _auto_available() -> bool:
     return True
 
 
-def what_to_try(spec_path: str | None = None, cost: str | None = None, searched: bool = False) -> str:
-    """The usual next steps for a useless model (``searched``: it came from ``family: auto`` already)."""
+def what_to_try(
+    spec_path: str | None = None, cost: str | None = None, searched: bool = False, python: bool = False
+) -> str:
+    """The usual next steps for a useless model (``searched``: it came from ``family: auto`` already;
+    ``python``: fitted with the Python API on arrays, so the steps are said as Python calls)."""
+    if python:
+        steps = ["cost='mse_inf'"] if cost is not None and cost != "mse_inf" else []
+        if searched:
+            steps.append("a larger search budget (params: {budget: ...}) or more data")
+        elif _auto_available():
+            steps.append("the model search, dynmodel.fit({'model': {'family': 'auto'}}, data=(u, y))")
+        else:
+            steps.append("another family (dynmodel.registry.families())")
+        steps.append("a spec file and `dynmodel diagnose` to name what the model gets wrong")
+        return "try " + ", ".join(steps[:-1]) + " or " + steps[-1]
     steps = [f"`dynmodel diagnose {spec_path or 'SPEC'}` to name what the model gets wrong"]
     if cost is not None and cost != "mse_inf":
         steps.append("cost: mse_inf")
@@ -234,12 +247,16 @@ CARRY_OVER_FIX = (
 
 
 def summary_line(
-    notes: list[Note], spec_path: str | None = None, cost: str | None = None, searched: bool = False
+    notes: list[Note],
+    spec_path: str | None = None,
+    cost: str | None = None,
+    searched: bool = False,
+    python: bool = False,
 ) -> str | None:
     """One line for the user: every finding but divergence (reported as an error of its own). A model that
     validates well but does not carry over to the test is said so apart from a model of little use."""
     carry = "; ".join(n.text for n in notes if n.kind == "does-not-carry-over")
-    line = _useless_line([n for n in notes if n.kind != "does-not-carry-over"], spec_path, cost, searched)
+    line = _useless_line([n for n in notes if n.kind != "does-not-carry-over"], spec_path, cost, searched, python)
     if not carry:
         return line
     if line is None:
@@ -250,7 +267,9 @@ def summary_line(
     return f"{line}; also, {carry}: the validation did not represent the test"
 
 
-def _useless_line(notes: list[Note], spec_path: str | None, cost: str | None, searched: bool) -> str | None:
+def _useless_line(
+    notes: list[Note], spec_path: str | None, cost: str | None, searched: bool, python: bool = False
+) -> str | None:
     poor = [n for n in notes if n.kind == "poor"]
     parts = []
     if poor:
@@ -262,7 +281,7 @@ def _useless_line(notes: list[Note], spec_path: str | None, cost: str | None, se
     parts += [n.text for n in notes if n.kind not in ("poor", "diverged")]
     if not parts:
         return None
-    return f"this model is of little use: {'; '.join(parts)}. Fix: {what_to_try(spec_path, cost, searched)}"
+    return f"this model is of little use: {'; '.join(parts)}. Fix: {what_to_try(spec_path, cost, searched, python)}"
 
 
 def stability_fix(hint: str, cost: str | None) -> str:

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from conftest import narx, write_csv
 
 import dynmodel
-from dynmodel.errors import DataError, DynmodelError, ParameterError, SpecError
+from dynmodel.errors import DataError, DynmodelError, ModelWarning, OutputError, ParameterError, SpecError
 from dynmodel.family import NotFittedError
 from dynmodel_plugins.annealed_rnn.params import SHARED_WITH_ESN, AnnealedRnnParams
 from dynmodel_plugins.esn import EchoStateNetwork
@@ -245,3 +247,39 @@ def test_the_fit_signature_shown_is_the_one_the_array_path_takes():
     assert [(p.name, p.kind, p.default) for p in shown.values()] == [
         (p.name, p.kind, p.default) for p in list(taken.values())[1:]
     ]
+
+
+def test_save_replaces_only_a_model_file(tmp_path, system):
+    """dynmodel.save keeps the CLI's rule: a model replaces a model, never the user's data or a folder."""
+    (u, y), _ = system
+    model = Narx(degree=3, lags=LAGS).fit(u, y)
+    data = tmp_path / "measurements.csv"
+    data.write_text("t,force\n0,1.5\n")
+    with pytest.raises(OutputError, match="not a dynmodel model; a model replaces only a model"):
+        dynmodel.save(model, data)
+    assert data.read_text() == "t,force\n0,1.5\n"
+    with pytest.raises(OutputError, match="is a folder"):
+        dynmodel.save(model, tmp_path)
+    with pytest.raises(TypeError, match="writes a fitted model, not a ndarray"):
+        dynmodel.save(np.zeros(3), tmp_path / "a.h5")
+    first = dynmodel.save(model, tmp_path / "m.h5")
+    assert dynmodel.save(model.model_, first) == first  # a previous model is replaced
+    assert dynmodel.load(first).family.terms_ == model.terms_
+
+
+def test_python_fits_warn_about_a_useless_model(system):
+    """A model fitted on arrays is never silently useless: the line dynmodel fit prints is a ModelWarning, and
+    the findings are on model_.assessment; a good model gives neither."""
+    (u, y), _ = system
+    noise = np.random.default_rng(5).normal(size=len(u))  # unrelated to the input
+    with pytest.warns(ModelWarning, match=r"of little use: its free-run NMSE is 9\d.\d % on validation") as seen:
+        model = Narx(degree=3, lags=LAGS).fit(u, noise)
+    assert "dynmodel.fit({'model': {'family': 'auto'}}" in str(seen[0].message)
+    assert seen[0].filename == __file__  # points at the user's line
+    assert {n.kind for n in model.model_.assessment} >= {"poor"}
+    with pytest.warns(ModelWarning, match="no better than predicting the training mean"):
+        dynmodel.fit({"model": {"family": "narx", "params": {"degree": 1}}}, data=(u, noise))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelWarning)
+        good = Narx(degree=3, lags=LAGS).fit(u, y)
+    assert good.model_.assessment == []
