@@ -123,7 +123,8 @@ def fit_arrays(
             )
         split = {"train": 1.0 - float(validation), "validation": float(validation)}
     elif isinstance(validation, (tuple, list)) and len(validation) == 2:
-        vrecs, _, _ = recordings(validation[0], validation[1], ins, outs, "validation")
+        named = input_names is None and output_names is None  # names from the data: found by name again
+        vrecs, _, _ = recordings(validation[0], validation[1], ins, outs, "validation", columns=named)
         sources["validation"] = (vrecs, float(sampling_time), ins, outs)
         split = {"train": 1.0}
     else:
@@ -262,12 +263,12 @@ def fit_spec(
     spec_ins = [str(c) for c in raw_data["input"]] if raw_data.get("input") else None
     spec_outs = [str(c) for c in raw_data["output"]] if raw_data.get("output") else None
     u, y = _pairs(entries["data"], spec_ins, spec_outs, "data")
-    recs, ins, outs = recordings(u, y, spec_ins, spec_outs, "arrays")
+    recs, ins, outs = recordings(u, y, spec_ins, spec_outs, "arrays", columns=True)
     loaded: dict[str, tuple[list, list[str], list[str]]] = {"data": (recs, ins, outs)}
     for s in ("validation", "test"):
         if s in entries:
             su, sy = _pairs(entries[s], ins, outs, f"data.{s}")
-            loaded[s] = recordings(su, sy, ins, outs, "arrays")
+            loaded[s] = recordings(su, sy, ins, outs, "arrays", columns=True)
     # the spec's source keys do not apply: the samples are given; separate sources come from data=
     raw_data = {k: v for k, v in raw_data.items() if k not in SOURCE_KEYS or k == "sampling_time"}
     st = float(raw_data.get("sampling_time") or 1.0)

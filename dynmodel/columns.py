@@ -70,16 +70,48 @@ def default_names(prefix: str, k: int) -> list[str]:
     return [prefix] if k == 1 else [f"{prefix}{j}" for j in range(k)]
 
 
+def names_columns(obj: Any) -> bool:
+    """Does ``obj`` name its channels: a DataFrame whose columns are not pandas' default positions
+    (0, 1, ...)? Its columns are then matched by name, never by position."""
+    return (
+        is_pandas(obj)
+        and getattr(obj, "ndim", 1) == 2
+        and not all(isinstance(c, (int, np.integer)) for c in obj.columns)
+    )
+
+
+def by_name(obj: Any, names: Sequence[str], what: str, where: str) -> Any:
+    """The channels ``names`` of a DataFrame that names its columns (:func:`names_columns`), in that
+    order; a DataError naming the missing ones when it lacks any (never a silent match by position);
+    other objects unchanged."""
+    if not names_columns(obj):
+        return obj
+    missing = [n for n in names if n not in obj.columns]
+    if missing:
+        raise DataError(
+            f"the {what} DataFrame has the columns {[str(c) for c in obj.columns]}, not {missing}",
+            where,
+            f"give it the {what} columns {list(names)} (any order; rename with DataFrame.rename), "
+            "or pass an array to match channels by position",
+        )
+    return obj[list(names)]
+
+
 def recordings(
     u: Any,
     y: Any,
     input_names: Sequence[str] | None = None,
     output_names: Sequence[str] | None = None,
     label: str = "arrays",
+    columns: bool = False,
 ) -> tuple[list[Recording], list[str], list[str]]:
     """Recordings from inputs ``u`` and outputs ``y`` (one signal each, or equally long lists of
     signals), with the input and output names: given ones first, then pandas names, then ``u`` /
-    ``y`` (``u0``, ``u1``, ... for several channels)."""
+    ``y`` (``u0``, ``u1``, ... for several channels).
+
+    DataFrames that name their columns are matched by name: against the names of the first recording
+    that gave them, and against given names when ``columns`` (names of a spec, which are column
+    names); given names otherwise rename the channels by position."""
     us = list(u) if is_recording_list(u) else [u]
     ys = list(y) if is_recording_list(y) else [y]
     if len(us) != len(ys):
@@ -90,9 +122,17 @@ def recordings(
         )
     recs: list[Recording] = []
     ins, outs = list(input_names or []), list(output_names or [])
+    match_ins, match_outs = columns and bool(ins), columns and bool(outs)
     for i, (ui, yi) in enumerate(zip(us, ys)):
+        name = label if len(us) == 1 else f"{label}[{i}]"
+        if match_ins:
+            ui = by_name(ui, ins, "input", name)
+        if match_outs:
+            yi = by_name(yi, outs, "output", name)
         ua, un = matrix(ui, "input")
         ya, yn = matrix(yi, "output")
+        match_ins = match_ins or (not ins and names_columns(ui))
+        match_outs = match_outs or (not outs and names_columns(yi))
         if ua.shape[0] != ya.shape[0]:
             raise DataError(
                 f"recording {i}: the input has {ua.shape[0]} samples, the output {ya.shape[0]}",
@@ -108,7 +148,6 @@ def recordings(
                     label,
                     f"give every recording the same {what} columns",
                 )
-        name = label if len(us) == 1 else f"{label}[{i}]"
         check_finite(np.hstack([ua, ya]), ins + outs, name)
         recs.append(Recording(name, ua, ya))
     if set(ins) & set(outs):

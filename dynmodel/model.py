@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from .columns import is_pandas, is_recording_list, like_input, matrix, recordings, select
+from .columns import by_name, default_names, is_pandas, is_recording_list, like_input, matrix, recordings, select
 from .data.dataset import Dataset
 from .data.finite import non_finite
 from .data.preprocess import Preprocessor
@@ -17,18 +17,23 @@ from .family import Family
 from .metrics import DEFAULT_METRICS, METRICS, nmse
 
 
-def _named_columns(frame, names: list[str]):
-    """The model's channels of a DataFrame when it names them all (any order), else the frame as given."""
+def _named_columns(frame, names: list[str], what: str = "input"):
+    """The model's channels of a DataFrame when it names them all (any order); a DataError when a DataFrame
+    that names its columns lacks one of the model's channels named in fitting (never a silent match by
+    position); else the frame as given (a Series, default column positions, or a model fitted on unnamed
+    arrays)."""
     if getattr(frame, "ndim", 1) == 2 and all(n in frame.columns for n in names):
         return select(frame, names, "columns")
-    return frame
+    if names == default_names("u" if what == "input" else "y", len(names)):
+        return frame
+    return by_name(frame, names, what, what)
 
 
-def _each_named(signals, names: list[str]):
+def _each_named(signals, names: list[str], what: str = "input"):
     """:func:`_named_columns` of a signal or of every signal of a list of recordings."""
     if is_recording_list(signals):
-        return [_named_columns(s, names) if is_pandas(s) else s for s in signals]
-    return _named_columns(signals, names) if is_pandas(signals) else signals
+        return [_named_columns(s, names, what) if is_pandas(s) else s for s in signals]
+    return _named_columns(signals, names, what) if is_pandas(signals) else signals
 
 
 @dataclass
@@ -142,7 +147,7 @@ class FittedModel:
         return Run(self.preprocessor.physical_outputs(y), diverged_at)
 
     def _outputs(self, y) -> np.ndarray:
-        return matrix(_named_columns(y, self.output_names), "output")[0] if is_pandas(y) else y
+        return matrix(_named_columns(y, self.output_names, "output"), "output")[0] if is_pandas(y) else y
 
     def predict(self, u, y_tune: np.ndarray | None = None) -> np.ndarray:
         """Free-running prediction (n, n_outputs) in physical units; a DataFrame indexed like ``u``
@@ -162,7 +167,7 @@ class FittedModel:
         of the output's mean): 1 - NMSE / 100 averaged over outputs (eq. 5.48), over every sample after
         the first :attr:`warmup` ones, which the run takes from ``y`` as its tune-in. ``u`` and ``y``
         may be lists of recordings (pooled, as a split is). A free run that diverges scores -inf."""
-        u, y = _each_named(u, self.input_names), _each_named(y, self.output_names)
+        u, y = _each_named(u, self.input_names), _each_named(y, self.output_names, "output")
         recs, _, _ = recordings(u, y, self.input_names, self.output_names, "score")
         warm = self.warmup
         measured, predicted = [], []

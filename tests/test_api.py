@@ -283,3 +283,26 @@ def test_python_fits_warn_about_a_useless_model(system):
         warnings.simplefilter("error", ModelWarning)
         good = Narx(degree=3, lags=LAGS).fit(u, y)
     assert good.model_.assessment == []
+
+
+def test_named_columns_are_matched_by_name_never_by_position(system):
+    """A DataFrame that names its columns is matched by name: a channel it lacks is an error naming it, in
+    predict, across recordings and against a spec's columns; reordered columns are put in order."""
+    pd = pytest.importorskip("pandas")
+    (u, y), (ut, yt) = system
+    other = np.random.default_rng(3).uniform(-1, 1, len(u))
+    frame = pd.DataFrame({"a": u, "b": other})
+    model = Narx(degree=1, lags={"a": [0, 1, 2], "b": [0], "y": [1, 2]}).fit(frame, pd.Series(y, name="y"))
+    swapped = model.predict(frame[["b", "a"]], y_tune=y[:2])
+    np.testing.assert_array_equal(swapped, model.predict(frame, y_tune=y[:2]))
+    with pytest.raises(DataError, match=r"has the columns \['c', 'b'\], not \['a'\]"):
+        model.predict(pd.DataFrame({"c": u, "b": other}), y_tune=y[:2])
+    halves = [pd.DataFrame({"force": u[:1000]}), pd.DataFrame({"temperature": u[1000:]})]
+    with pytest.raises(DataError, match=r"arrays\[1\]: the input DataFrame has the columns \['temperature'\]"):
+        Narx(degree=1).fit(halves, [y[:1000], y[1000:]])
+    spec = {"data": {"input": ["force"], "output": ["pos"]}, "model": {"family": "narx"}}
+    with pytest.raises(DataError, match=r"not \['force'\]"):
+        dynmodel.fit(spec, data=(pd.DataFrame({"temperature": u}), pd.Series(y, name="pos")))
+    # given names still rename by position (documented), and unnamed models take any frame by position
+    renamed = Narx(degree=1, lags={"force": [0, 1], "y": [1]}).fit(pd.DataFrame({"t": u}), y, input_names=["force"])
+    assert renamed.model_.input_names == ["force"]
