@@ -147,6 +147,10 @@ def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
         if has_one:
             row.append(_fmt(m.get("nmse_1")))
         table.add_row(*row)
+        per = m.get("per_output") or {}
+        if len(per) > 1 and not m.get("unstable_from"):  # each output: a mean must not hide a useless one
+            for name, values in per.items():
+                table.add_row(*[escape(f"  output {name}"), ""] + [_fmt(values.get(k)) for k in shown] + [""] * has_one)
     return table
 
 

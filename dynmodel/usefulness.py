@@ -51,9 +51,13 @@ class Note:
     split: str | None
     text: str  # what was measured, as a clause of a sentence
     value: float | None = None
+    output: str | None = None  # the one output of a multi-output model the finding is about
 
     def to_json(self) -> dict[str, Any]:
-        return {"kind": self.kind, "split": self.split, "text": self.text, "value": self.value}
+        out = {"kind": self.kind, "split": self.split, "text": self.text, "value": self.value}
+        if self.output is not None:
+            out["output"] = self.output
+        return out
 
 
 def held_out_splits(metrics: Mapping[str, Any]) -> list[str]:
@@ -62,8 +66,8 @@ def held_out_splits(metrics: Mapping[str, Any]) -> list[str]:
     return keys or [k for k in metrics if k == "train"]
 
 
-def trivial_nmse(ds: Dataset, split: str, warmup: int = 0) -> float | None:
-    """NMSE (percent, mean over outputs) of predicting the training mean on ``split``."""
+def trivial_nmse_each(ds: Dataset, split: str, warmup: int = 0) -> np.ndarray | None:
+    """NMSE (percent) of predicting the training mean on ``split``, per output."""
     rows = ds.scored(split, warmup)
     train = ds.scored("train", warmup)
     if not rows or not train:
@@ -73,7 +77,22 @@ def trivial_nmse(ds: Dataset, split: str, warmup: int = 0) -> float | None:
     var = y.var(axis=0)
     if not np.all(var > 0):
         return None
-    return float(np.mean(100.0 * np.mean((y - mean) ** 2, axis=0) / var))
+    return 100.0 * np.mean((y - mean) ** 2, axis=0) / var
+
+
+def trivial_nmse(ds: Dataset, split: str, warmup: int = 0) -> float | None:
+    """NMSE (percent, mean over outputs) of predicting the training mean on ``split``."""
+    each = trivial_nmse_each(ds, split, warmup)
+    return None if each is None else float(np.mean(each))
+
+
+def _poor(value: float, ref: float | None, split: str, output: str | None = None) -> Note | None:
+    """A ``poor`` note when ``value`` (NMSE %) reaches :data:`POOR_NMSE` or the trivial reference ``ref``."""
+    if not (value >= POOR_NMSE or (ref is not None and value >= ref)):
+        return None
+    worse = f", no better than the training mean's {ref:.3g} %" if ref is not None and value >= ref else ""
+    on = f" on output '{output}'" if output is not None else ""
+    return Note("poor", split, f"its {split} NMSE is {value:.3g} %{on}{worse}", float(value), output)
 
 
 def input_dependence(
@@ -136,10 +155,17 @@ def assess(
         value = metrics[split].get("nmse")
         if value is None:
             continue
-        ref = trivial_nmse(ds, split, model.warmup) if ds is not None else None
-        if value >= POOR_NMSE or (ref is not None and value >= ref):
-            worse = f", no better than the training mean's {ref:.3g} %" if ref is not None and value >= ref else ""
-            notes.append(Note("poor", split, f"its {split} NMSE is {value:.3g} %{worse}", float(value)))
+        refs = trivial_nmse_each(ds, split, model.warmup) if ds is not None else None
+        per = metrics[split].get("per_output") or {}
+        whole = _poor(value, None if refs is None else float(np.mean(refs)), split)
+        if whole is not None or len(per) < 2:
+            notes += [whole] if whole is not None else []
+            continue
+        # one useless output of several: the mean over outputs must not hide it
+        for j, (name, entry) in enumerate(per.items()):
+            v = entry.get("nmse")
+            note = None if v is None else _poor(v, None if refs is None else float(refs[j]), split, name)
+            notes += [note] if note is not None else []
     notes += carry_over(metrics, search_validation(model))
     if ds is not None and bad is None:
         dep = input_dependence(model, ds, runs=runs)
@@ -273,7 +299,9 @@ def _useless_line(
     poor = [n for n in notes if n.kind == "poor"]
     parts = []
     if poor:
-        scores = ", ".join(f"{n.value:.3g} % on {n.split}" for n in poor)
+        scores = ", ".join(
+            f"{n.value:.3g} % on {n.split}" + (f" for output '{n.output}'" if n.output else "") for n in poor
+        )
         worse = any("training mean" in n.text for n in poor)
         parts.append(
             f"its free-run NMSE is {scores} ({'no better than predicting the training mean' if worse else '>= 90 %'})"

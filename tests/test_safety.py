@@ -383,6 +383,25 @@ def test_usefulness_of_a_good_and_of_a_useless_model(fitted, folder):
     assert "cost: mse_inf" in line and "cost: mse_inf" not in summary_line(notes, "s.yaml", "mse_inf")
 
 
+def test_one_useless_output_of_two_is_named(tmp_path):
+    """A model with one good output and one that is noise unrelated to the input: the mean over outputs
+    (about 55 %) stays under the 90 % line, so the useless output must be judged on its own."""
+    u, y = narx(1500, 1)
+    z = np.convolve(np.random.default_rng(7).standard_normal(1500), np.ones(5) / 5, mode="same")
+    write_csv(tmp_path / "two.csv", {"u": u, "y": y, "z": z})
+    raw = base_spec("two.csv")
+    raw["data"]["output"] = ["y", "z"]
+    raw["model"] = {"family": "narx", "params": {"degree": 2}}
+    spec = make_spec(raw, tmp_path)
+    ds = load_dataset(spec)
+    model, runs = engine.fit_dataset(spec, ds)
+    assert model.metrics["validation"]["nmse"] < 90.0  # the mean alone would pass
+    notes = [n for n in assess(model, ds, runs) if n.kind == "poor"]
+    assert notes and {n.output for n in notes} == {"z"} and {n.split for n in notes} >= {"validation"}
+    line = summary_line(notes, "s.yaml", "mse_inf")
+    assert "on validation for output 'z'" in line and "for output 'y'" not in line
+
+
 def test_a_constant_model_ignores_its_input(fitted):
     model, ds, runs, _ = fitted
     import copy
