@@ -491,7 +491,13 @@ def test_predict_keeps_the_time_column_and_says_where_the_plot_is(cli, fitted, t
     assert "plot written to p.png" in r.stderr and (tmp_path / "p.png").stat().st_size > 5000
     text = (tmp_path / "p.csv").read_text().splitlines()
     assert text[0] == "time,y" and text[1].startswith("12.5,")
-    r = cli("predict", "m.h5", "--input", "run.csv", "--out", "p.csv")  # replaces its own prediction
+    # a table of time and outputs alone has the header of a file of measured outputs: never replaced unasked
+    write_csv(tmp_path / "measured.csv", {"time": np.arange(200) * 1.0, "y": y})
+    before = (tmp_path / "measured.csv").read_text()
+    r = cli("predict", "m.h5", "--input", "run.csv", "--out", "measured.csv")
+    assert r.exit_code == 2 and "replaces a CSV file only when asked" in r.stderr
+    assert (tmp_path / "measured.csv").read_text() == before
+    r = cli("predict", "m.h5", "--input", "run.csv", "--out", "p.csv", "--force")  # its own table, when asked
     assert r.exit_code == 0, r.stderr
 
 

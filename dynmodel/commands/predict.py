@@ -88,11 +88,16 @@ def predict_file(
     model = store.load(model_file)
     inp = prediction.read_inputs(model, input_file, tune_file)
     columns = prediction.header(model, inp.time_name, skip_tune_in)
+    # only a table with the tune-in flag column is told apart from measured data: a file of time and outputs
+    # alone may be the user's measurements (same header), so replacing it takes --force
+    ours = [
+        h for h in (prediction.header(model, inp.time_name, skip) for skip in (False, True)) if prediction.MEASURED in h
+    ]
     check_outputs(
         [(out_file, "csv", "--out"), (plot_file, "plot", "--plot")],
         {"model": model_file, "input file": input_file, "tune-in file": tune_file},
         force,
-        columns={"--out": [prediction.header(model, inp.time_name, skip) for skip in (False, True)]},
+        columns={"--out": ours},
     )
     try:
         run = model.run(inp.u, inp.y_tune)
