@@ -106,7 +106,7 @@ def _outputs(model: FittedModel, path: Path, n: int | None) -> np.ndarray | None
     names = set(list_columns(path))
     if not all(o in names for o in model.output_names):
         return None
-    yc = read_columns(path, model.output_names)
+    yc = read_columns(path, model.output_names, gaps=True)  # only the tune-in rows must be complete
     y = np.column_stack([yc[o] for o in model.output_names])
     return y if n is None or len(y) == n else None
 

@@ -508,3 +508,29 @@ def test_a_searched_model_of_little_use_is_not_told_to_try_the_search():
     assert "family: auto" in what_to_try("s.yaml") or "another family" in what_to_try("s.yaml")
     searched = what_to_try("s.yaml", searched=True)
     assert "family: auto" not in searched and "budget" in searched and "dynmodel diagnose s.yaml" in searched
+
+
+def test_predict_reads_measured_outputs_with_gaps_after_the_tune_in(cli, tmp_path, monkeypatch):
+    """Only the tune-in rows of the measured outputs must be complete: a gap later in the output column (a
+    dropped sample) used to refuse the whole file; a gap inside the tune-in is one clear line."""
+    from dynmodel_plugins.narx import Narx
+
+    u, y = narx(800, 1)
+    store.save(Narx(degree=3, lags={"u": [0, 1, 2], "y": [1, 2]}).fit(u, y).model_, tmp_path / "m.h5")
+    ut, yt = narx(300, 5)
+    cells = [f"{v:.10g}" for v in yt]
+    late, early = list(cells), list(cells)
+    late[200], early[1] = "", ""
+    (tmp_path / "late.csv").write_text(
+        "t,u,y\n" + "".join(f"{i},{a:.10g},{b}\n" for i, (a, b) in enumerate(zip(ut, late)))
+    )
+    (tmp_path / "early.csv").write_text(
+        "t,u,y\n" + "".join(f"{i},{a:.10g},{b}\n" for i, (a, b) in enumerate(zip(ut, early)))
+    )
+    monkeypatch.chdir(tmp_path)
+    r = cli("predict", "m.h5", "--input", "late.csv", "--out", "p.csv")
+    assert r.exit_code == 0, r.stderr
+    rows = np.loadtxt(tmp_path / "p.csv", delimiter=",", skiprows=1)
+    assert rows.shape == (300, 3) and np.isfinite(rows).all()
+    r = cli("predict", "m.h5", "--input", "early.csv", "--out", "q.csv")
+    assert r.exit_code == 2 and "the tune-in needs 2 finite measured output samples, found 1" in r.stderr

@@ -91,8 +91,11 @@ def read_text(
     header: bool = True,
     columns: Sequence[str] | None = None,
     delimiter: str | None = None,
+    gaps: bool = False,
 ) -> dict[str, np.ndarray]:
-    """Read selected columns of a delimited text file into float64 arrays."""
+    """Read selected columns of a delimited text file into float64 arrays (``gaps``: an empty cell is NaN
+    instead of an error, for columns that need not be complete, such as measured outputs beside the inputs
+    of a prediction)."""
     text, _ = decode_text(_read_bytes(path), str(path))
     lines = text.lstrip("\ufeff").splitlines()
     lines = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
@@ -150,6 +153,9 @@ def read_text(
             )
         for key, col in wanted:
             text = cells[col].strip() if col < len(cells) else ""
+            if not text and gaps:
+                out[key][row] = np.nan
+                continue
             if not text:
                 raise DataError(
                     f"column '{key}' has no value at line {row + first_data_line} (sample {row})",
@@ -292,8 +298,10 @@ def read_columns(
     header: bool = True,
     columns: Sequence[str] | None = None,
     delimiter: str | None = None,
+    gaps: bool = False,
 ) -> dict[str, np.ndarray]:
-    """Read the selected columns of ``path``; the format follows the file's content (see the module)."""
+    """Read the selected columns of ``path``; the format follows the file's content (see the module).
+    ``gaps``: empty cells of a text file are NaN instead of an error."""
     if not path.exists():
         raise DataError(
             "file not found", str(path), "check data.path (relative paths resolve against the spec file's folder)"
@@ -320,7 +328,7 @@ def read_columns(
         warnings.warn(DataNote(f"{path}: named {path.suffix} but holds {looks}; read as such"), stacklevel=2)
     try:
         if fmt == "text":
-            cols = read_text(path, selectors, header=header, columns=columns, delimiter=delimiter)
+            cols = read_text(path, selectors, header=header, columns=columns, delimiter=delimiter, gaps=gaps)
         elif fmt == "npz":
             cols = read_npz(path, [str(s) for s in selectors])
         elif fmt == "hdf5":
