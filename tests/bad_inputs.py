@@ -824,8 +824,15 @@ def cases() -> list[Case]:
             setup=lambda f: _h5_data(f / "lab.csv"),
         ),
         C(
-            "predict-replaces-its-prediction",
+            # a table of time and outputs alone looks like measured outputs: a prediction replaces it when asked
+            "predict-keeps-a-file-like-measurements",
             ["predict", "m.h5", "--input", "new.csv", "--out", "p.csv"],
+            expect="replaces a CSV file only when asked to",
+            setup=lambda f: write_csv(f / "p.csv", {"t": np.zeros(2), "y": np.zeros(2)}),
+        ),
+        C(
+            "predict-replaces-its-prediction-when-asked",
+            ["predict", "m.h5", "--input", "new.csv", "--out", "p.csv", "--force"],
             code=0,
             setup=lambda f: write_csv(f / "p.csv", {"t": np.zeros(2), "y": np.zeros(2)}),
             writes=("p.csv",),
