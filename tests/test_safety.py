@@ -534,3 +534,20 @@ def test_predict_reads_measured_outputs_with_gaps_after_the_tune_in(cli, tmp_pat
     assert rows.shape == (300, 3) and np.isfinite(rows).all()
     r = cli("predict", "m.h5", "--input", "early.csv", "--out", "q.csv")
     assert r.exit_code == 2 and "the tune-in needs 2 finite measured output samples, found 1" in r.stderr
+
+
+def test_predict_says_when_the_predicted_output_leaves_the_training_range(tmp_path):
+    """An output beyond the training output range is said with where it starts (a network started at rest
+    far from the data's state, or a clipped extrapolation), not only an input beyond its range."""
+    from dynmodel.commands.predict import predict_file
+    from dynmodel_plugins.narx import Narx
+
+    u, y = narx(800, 1)
+    store.save(Narx(degree=3, lags={"u": [0, 1, 2], "y": [1, 2]}).fit(u, y).model_, tmp_path / "m.h5")
+    ut, yt = narx(300, 5)
+    write_csv(tmp_path / "same.csv", {"t": np.arange(300.0), "u": ut, "y": yt})
+    write_csv(tmp_path / "big.csv", {"t": np.arange(300.0), "u": 4 * ut, "y": yt})
+    assert predict_file(tmp_path / "m.h5", tmp_path / "same.csv").output_notes() == []
+    (note,) = predict_file(tmp_path / "m.h5", tmp_path / "big.csv").output_notes()
+    assert note.startswith("the predicted output 'y' leaves the training output range by") and "from sample" in note
+    assert "starts from rest" not in note  # a NARX model's state is its measured tune-in

@@ -50,6 +50,35 @@ class PredictResult:
                     f"the input '{name}' leaves the training range by {100 * excess:.0f} % of its width (sample {k}, "
                     f"{self.inputs.time_name} = {self.inputs.time[k]:.6g}): the model extrapolates there"
                 )
+        return notes + self.output_notes(margin)
+
+    def output_notes(self, margin: float = 0.05) -> list[str]:
+        """A predicted output that goes beyond the training output range by more than ``margin`` of its width
+        (after the tune-in): where it first does and how far it goes. Inside the input range this is most
+        often the start: a network's state starts at rest, far from the state the data's start needs."""
+        train, y = self.model.train_output, self.run.y[self.model.warmup :]
+        if train is None or train.ndim != 2 or train.shape[0] == 0 or train.shape[1] != y.shape[1] or not len(y):
+            return []
+        lo, hi = np.nanmin(train, axis=0), np.nanmax(train, axis=0)
+        width = np.maximum(hi - lo, np.finfo(float).tiny)
+        notes = []
+        for j, name in enumerate(self.model.output_names):
+            excess = np.maximum(y[:, j] - hi[j], lo[j] - y[:, j]) / width[j]
+            out = np.flatnonzero(np.nan_to_num(excess, nan=0.0) > margin)
+            if not len(out):
+                continue
+            k = int(out[0]) + self.model.warmup
+            start = (
+                "; it starts there: the model's state starts from rest, far from the state the data's start needs "
+                "(`dynmodel reliability-check` tells how many samples it takes to forget its start; leave them out)"
+                if out[0] < 0.05 * len(y) and not self.model.warmup  # no measured tune-in sets its state
+                else ""
+            )
+            notes.append(
+                f"the predicted output '{name}' leaves the training output range by {100 * float(np.nanmax(excess)):.0f} % "
+                f"of its width on {len(out)} samples, from sample {k} ({self.inputs.time_name} = "
+                f"{self.inputs.time[k]:.6g}){start}"
+            )
         return notes
 
     def problem(self) -> FreeRunDiverged | None:
