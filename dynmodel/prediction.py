@@ -68,6 +68,14 @@ def read_inputs(model: FittedModel, input_path: Path, tune_in_path: Path | None 
         measured = None
     need = model.warmup
     y_tune = None
+    if tune_in_path is not None and not need:
+        import warnings
+
+        warnings.warn(
+            f"{tune_in_path}: this model ({model.family.name}) runs from its rest state and reads no measured "
+            "outputs, so the --tune-in file is not used",
+            stacklevel=2,
+        )
     if need:
         source = tune_in_path or input_path
         y = _outputs(model, source, None)
@@ -87,9 +95,10 @@ def read_inputs(model: FittedModel, input_path: Path, tune_in_path: Path | None 
                 str(source),
                 f"provide the first {need} measured values of {model.output_names}",
             )
-        if need > len(u):
+        if need >= len(u):  # nothing left to predict
             raise DataError(
-                f"the input has {len(u)} samples, fewer than the model's tune-in of {need}",
+                f"the input has {len(u)} samples, no more than the model's tune-in of {need}: nothing is left to "
+                "predict",
                 str(input_path),
                 f"give at least {need + 1} samples",
             )
@@ -116,7 +125,9 @@ def _check_step(model: FittedModel, t: np.ndarray, name: str, path: Path) -> Non
 
     if len(t) < 2:
         return
-    unit = float((model.spec.get("data") or {}).get("time_unit") or 1.0)
+    data = model.spec.get("data") or {}
+    # the training's time unit belongs to its time column: a column found by its name (t, time_s) is in seconds
+    unit = float(data.get("time_unit") or 1.0) if name == data.get("time_column") else 1.0
     step = float(np.median(np.diff(t))) * unit
     st = model.sampling_time
     if st > 0 and abs(step - st) > 0.01 * st:

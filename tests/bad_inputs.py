@@ -844,6 +844,18 @@ def cases() -> list[Case]:
             expect="tune-in rows left out",
         ),
         C(
+            "predict-duplicate-input-column",
+            ["predict", "m.h5", "--input", "dup.csv"],
+            expect="the header names 2 columns 'u'",
+            setup=lambda f: (f / "dup.csv").write_text("t,u,u\n0,1,2\n1,1,2\n2,1,2\n"),
+        ),
+        C(
+            "predict-input-no-longer-than-the-tune-in",
+            ["predict", "ext.h5", "--input", "short.csv"],
+            expect="nothing is left to predict",
+            setup=lambda f: write_csv(f / "short.csv", {"t": np.arange(20.0), "u": np.zeros(20), "y": np.zeros(20)}),
+        ),
+        C(
             "predict-tune-in-is-a-folder",
             ["predict", "ext.h5", "--input", "only_u.csv", "--tune-in", "."],
             expect="is a folder",

@@ -131,6 +131,12 @@ def read_text(
     wanted: list[tuple[str, int]] = []
     for sel in selectors:
         key = str(sel).strip()
+        if key and names.count(key) > 1:
+            raise DataError(
+                f"the header names {names.count(key)} columns '{key}'; which one is meant is unclear",
+                str(path),
+                "give each column its own name",
+            )
         if key not in index:
             if header and key.isdigit() and int(key) < len(names):
                 wanted.append((key, int(key)))
