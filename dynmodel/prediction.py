@@ -55,6 +55,20 @@ def time_column(model: FittedModel, path: Path) -> str | None:
 def read_inputs(model: FittedModel, input_path: Path, tune_in_path: Path | None = None) -> PredictionInput:
     """The model's input columns from ``input_path``; the tune-in outputs from ``tune_in_path`` (or
     the input file); the time column. One-line DataErrors for anything missing."""
+    for option, given in (("--input", input_path), ("--tune-in", tune_in_path)):
+        if given is None:
+            continue
+        if not given.exists():
+            raise DataError(f"{option} file not found", str(given), f"check the {option} path")
+        from .paths import is_previous_output
+
+        if given.is_file() and is_previous_output(given, "model"):
+            raise DataError(
+                "is a dynmodel model file, not data",
+                str(given),
+                f"give {option} the data file with the model's {'input' if option == '--input' else 'output'} "
+                "columns (the model file is the first argument)",
+            )
     if tune_in_path is not None and not tune_in_path.exists():
         raise DataError("tune-in file not found", str(tune_in_path), "check the --tune-in path")
     if tune_in_path is not None and not tune_in_path.is_file():

@@ -880,6 +880,17 @@ def read_spec_text(p: Path) -> str:
     try:
         return read_text_file(p, "spec")
     except DataError as exc:
+        from .paths import is_previous_output
+
+        if is_previous_output(p, "model"):
+            raise SpecError(
+                "is a dynmodel model file, not a spec",
+                str(p),
+                "give the YAML spec the model was fitted from (`dynmodel inspect MODEL --spec` prints it); "
+                "a model file goes to dynmodel predict, inspect or reliability-check",
+            ) from None
+        if exc.what.startswith("is not a text file"):  # a spec is YAML text, not data
+            raise SpecError(exc.what, exc.where, "give the YAML spec file (a text file)") from None
         raise SpecError(exc.what, exc.where, exc.fix) from None
 
 

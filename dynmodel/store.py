@@ -218,6 +218,18 @@ def load(path: str | Path, families: Mapping[str, type[Family]] | None = None) -
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
+        from .paths import describe_file
+
+        looks = describe_file(path)
+        if looks.startswith("text"):  # a spec or a data file given where the model goes
+            spec = path.suffix.lower() in (".yaml", ".yml")
+            raise ModelFileError(
+                f"is {'a YAML spec' if spec else looks}, not a model file",
+                str(path),
+                f"fit the spec first (`dynmodel fit {path.name}`) and give the model file it writes"
+                if spec
+                else "give the model file (.h5) that `dynmodel fit` wrote",
+            ) from None
         raise ModelFileError(
             f"not a readable HDF5 model file ({str(exc).split('(')[0].strip()})",
             str(path),

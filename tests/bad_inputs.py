@@ -786,7 +786,7 @@ def cases() -> list[Case]:
         C(
             "predict-model-is-a-csv",
             ["predict", "run.csv", "--input", "new.csv"],
-            expect="not a readable HDF5 model file",
+            expect='is text starting with "t,u,y", not a model file',
         ),
         C(
             "predict-model-truncated",
@@ -895,7 +895,14 @@ def cases() -> list[Case]:
         C("predict-seed-like-typo", ["predict", "m.h5", "--input"], expect="--input"),
         # ---- inspect
         C("inspect-model-missing", ["inspect", "nope.h5"], expect="model file not found"),
-        C("inspect-csv-as-model", ["inspect", "run.csv"], expect="not a readable HDF5 model file"),
+        C("inspect-csv-as-model", ["inspect", "run.csv"], expect="not a model file"),
+        C("inspect-spec-as-model", ["inspect", "spec.yaml"], expect="is a YAML spec, not a model file"),
+        C("fit-model-as-spec", ["fit", "m.h5"], expect="is a dynmodel model file, not a spec"),
+        C(
+            "predict-model-as-input",
+            ["predict", "m.h5", "--input", "ext.h5"],
+            expect="is a dynmodel model file, not data",
+        ),
         C(
             "inspect-hdf5-not-a-model",
             ["inspect", "lab.h5"],

@@ -94,7 +94,7 @@ def test_external_model_asks_for_tune_in_outputs(cli, tmp_path, quick_spec):
     r = cli("predict", tmp_path / "quick.h5", "--input", tmp_path / "only_u.csv", "--tune-in", tmp_path / "tune.csv")
     assert r.exit_code == 0 and len(r.stdout.splitlines()) == 501
     r = cli("predict", tmp_path / "quick.h5", "--input", tmp_path / "only_u.csv", "--tune-in", tmp_path / "nope.csv")
-    assert "nope.csv: tune-in file not found" in _one_line_error(r)
+    assert "nope.csv: --tune-in file not found" in _one_line_error(r)
 
 
 def test_plugins_schema_validate_generate(cli, tmp_path):

@@ -65,7 +65,7 @@ def test_truncated_file(tmp_path, model):
 
 def test_not_hdf5_and_not_ours(tmp_path):
     (tmp_path / "x.h5").write_text("hello")
-    with pytest.raises(ModelFileError, match="not a readable HDF5"):
+    with pytest.raises(ModelFileError, match='is text starting with "hello", not a model file'):
         store.load(tmp_path / "x.h5")
     with h5py.File(tmp_path / "other.h5", "w") as f:
         f["a"] = 1
