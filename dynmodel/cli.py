@@ -190,16 +190,8 @@ def fit(
     if model.search is not None:
         _print_search(model.search)
     out.print(metrics_table(model.metrics))
-    if s.data.noise is not None and s.data.noise.std > 0:
-        out.print(
-            f"note: noise of std {s.data.noise.std:g} x the output std was added to the "
-            f"{', '.join(s.data.noise.splits)} outputs; those splits are scored against the noisy outputs"
-        )
-    for note in ds.excursion_notes():
+    for note in result.data_notes():
         out.print(f"note: {note}", markup=False, soft_wrap=True)
-    for split, note in ds.repeat_notes().items():
-        if split != "validation" or model.search is None:  # the search's notes say it for its validation
-            out.print(f"note: {note}", markup=False, soft_wrap=True)
     out.print(f"model written to {result.path}")
     if result.plot_path is not None:
         out.print(f"plot written to {result.plot_path}")

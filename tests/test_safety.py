@@ -402,6 +402,24 @@ def test_one_useless_output_of_two_is_named(tmp_path):
     assert "on validation for output 'z'" in line and "for output 'y'" not in line
 
 
+def test_fit_json_holds_the_printed_notes_and_warning(cli, tmp_path):
+    """--json carries what fit prints below the table: the notes on the data and the usefulness line."""
+    u, y = narx(1000, 1)
+    u[900:] *= 3  # the test input goes beyond the training range
+    write_csv(tmp_path / "run.csv", {"t": np.arange(1000.0), "u": u, "y": np.random.default_rng(99).normal(size=1000)})
+    spec_path = tmp_path / "s.yaml"
+    spec_path.write_text(
+        "data: {path: run.csv, input: [u], output: [y], split: {train: 0.6, validation: 0.2, test: 0.2}}\n"
+        "model: {family: narx}\n"
+    )
+    r = cli("fit", spec_path, "--json", tmp_path / "f.json", "-q")
+    report = json.loads((tmp_path / "f.json").read_text())
+    printed = " ".join(r.stdout.split())
+    assert any(n.startswith("the test input 'u' leaves the training range") for n in report["notes"])
+    assert all(" ".join(n.split()) in printed for n in report["notes"])
+    assert report["warning"].startswith("this model is of little use")
+
+
 def test_a_constant_model_ignores_its_input(fitted):
     model, ds, runs, _ = fitted
     import copy

@@ -44,12 +44,34 @@ class FitResult:
     def cost(self) -> str | None:
         return self.model.spec.get("cost") or self.spec.cost
 
+    def data_notes(self) -> list[str]:
+        """What the user should know of the data behind the figures: noise added to some splits, a validation or
+        test input beyond the training range (the model extrapolates there), a validation that repeats the
+        training input (the search says it itself for its validation)."""
+        noise = self.spec.data.noise
+        notes = []
+        if noise is not None and noise.std > 0:
+            notes.append(
+                f"noise of std {noise.std:g} x the output std was added to the {', '.join(noise.splits)} outputs; "
+                "those splits are scored against the noisy outputs"
+            )
+        notes += self.dataset.excursion_notes()
+        notes += [
+            note
+            for split, note in self.dataset.repeat_notes().items()
+            if split != "validation" or self.model.search is None
+        ]
+        return notes
+
     def to_json(self) -> dict[str, Any]:
-        """The ``--json`` payload: metrics, model file, usefulness assessment (and the search record)."""
+        """The ``--json`` payload: metrics, model file, usefulness assessment and its one line, the notes on
+        the data (and the search record)."""
         payload: dict[str, Any] = {
             "metrics": self.model.metrics,
             "model": str(self.path),
             "assessment": [n.to_json() for n in self.notes],
+            "warning": self.warning(),
+            "notes": self.data_notes(),
         }
         if self.model.search is not None:
             payload["search"] = self.model.search
