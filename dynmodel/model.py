@@ -154,8 +154,37 @@ class FittedModel:
         when ``u`` is a pandas DataFrame or Series.
 
         ``y_tune``: measured outputs, at least the first :attr:`warmup` samples (external mode).
+
+        A free run that diverges (NaN from that sample on) and an input beyond the training range by more than
+        5 % of its width are said as a :class:`~dynmodel.errors.ModelWarning`, as ``dynmodel predict`` says them.
         """
-        return like_input(u, self.run(u, y_tune).y, self.output_names)
+        run = self.run(u, y_tune)
+        self._warn_about(run, self._inputs(u))
+        return like_input(u, run.y, self.output_names)
+
+    def _warn_about(self, run: Run, u: np.ndarray, margin: float = 0.05) -> None:
+        import warnings
+
+        from .api import _caller_level
+        from .data.dataset import beyond_range
+        from .errors import ModelWarning
+
+        texts = []
+        train = self.train_input
+        if train is not None and train.ndim == 2 and train.shape[0] and train.shape[1] == u.shape[1]:
+            for name, (excess, k) in zip(self.input_names, beyond_range(u, train.min(axis=0), train.max(axis=0))):
+                if excess > margin:
+                    texts.append(
+                        f"the input '{name}' leaves the training range by {100 * excess:.0f} % of its width (sample "
+                        f"{k}): the model extrapolates there"
+                    )
+        if run.diverged_at is not None:
+            texts.append(
+                f"the free run diverged at sample {run.diverged_at}; the predictions are NaN from there on. Fix: keep "
+                "the input within the training range, or refit on data that covers it"
+            )
+        for text in texts:
+            warnings.warn(text[0].upper() + text[1:], ModelWarning, stacklevel=_caller_level())
 
     def predict_one_step(self, u, y_measured: np.ndarray) -> np.ndarray | None:
         um = self.preprocessor.inputs(self._inputs(u))

@@ -306,3 +306,20 @@ def test_named_columns_are_matched_by_name_never_by_position(system):
     # given names still rename by position (documented), and unnamed models take any frame by position
     renamed = Narx(degree=1, lags={"force": [0, 1], "y": [1]}).fit(pd.DataFrame({"t": u}), y, input_names=["force"])
     assert renamed.model_.input_names == ["force"]
+
+
+def test_predict_warns_of_extrapolation_and_divergence(system):
+    """predict on arrays says what dynmodel predict says: an input beyond the training range, and where the
+    free run diverged (its NaN were silent)."""
+    (u, y), (ut, yt) = system
+    model = Narx(degree=3, lags=LAGS, bounds=None).fit(u, y)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelWarning)
+        model.predict(ut, y_tune=yt[:2])  # inside the range: silent
+    with pytest.warns(ModelWarning) as seen:
+        pred = model.predict(10 * ut, y_tune=yt[:2])
+    texts = [str(w.message) for w in seen]
+    assert any(t.startswith("The input 'u' leaves the training range by") for t in texts)
+    (diverged,) = [t for t in texts if "diverged" in t]
+    k = int(diverged.split("sample ")[1].split(";")[0])
+    assert np.isnan(pred[k:]).all() and np.isfinite(pred[:k]).all()
