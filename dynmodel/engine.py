@@ -105,6 +105,9 @@ def fit_family(
 def _fit_family(
     family: Family, spec: Spec | ArraySpec, ds: Dataset, progress: Progress
 ) -> tuple[FittedModel, list[Run]]:
+    from .data.checks import check_warmup
+
+    check_warmup(ds, family.warmup, spec.source)  # also for a family constructed in Python (no checked_family)
     pre = preprocessor(spec, ds)
     td = training_data(ds, pre)
     assert spec.cost is not None, "the cost is set for every family but auto (which searches)"

@@ -323,3 +323,13 @@ def test_predict_warns_of_extrapolation_and_divergence(system):
     (diverged,) = [t for t in texts if "diverged" in t]
     k = int(diverged.split("sample ")[1].split(";")[0])
     assert np.isnan(pred[k:]).all() and np.isfinite(pred[:k]).all()
+
+
+def test_a_tune_in_that_covers_the_training_split_is_one_clear_error(system):
+    """An external network on arrays whose tune-in leaves nothing to score is refused before the fit, with the
+    split's own length (it used to end after the fit in numpy's 'need at least one array to concatenate')."""
+    (u, y), _ = system
+    with pytest.raises(DataError, match="leaves no scored sample in the train split"):
+        EchoStateNetwork(mode="external").fit(u[:20], y[:20])
+    with pytest.raises(DataError, match=r"ends at sample 1600 .* shorten the model's tune-in below 1600"):
+        EchoStateNetwork(mode="external", tune_in=1600).fit(u, y)

@@ -125,10 +125,11 @@ def check_warmup(ds: Dataset, warmup: int, source: str) -> None:
         return
     for split in ds.ranges:
         if ds.ranges[split] and ds.n_scored(split, warmup) == 0:
-            longest = max(ds.recordings[r].n for r, _, _ in ds.ranges[split])
+            # the tune-in counts from a recording's start: a split's range ending at sample b needs it below b
+            longest = max(stop for _, _, stop in ds.ranges[split])
             raise DataError(
                 f"the model tunes in on the first {warmup} samples of every recording, which leaves no scored "
-                f"sample in the {split} split (its longest recording has {longest} samples)",
+                f"sample in the {split} split (it ends at sample {longest} of its longest recording)",
                 f"{source}: model.params",
                 f"shorten the model's tune-in below {longest} samples, or give longer recordings",
             )
