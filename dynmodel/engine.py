@@ -48,12 +48,32 @@ def _provenance(spec: Spec | ArraySpec, ds: Dataset) -> dict[str, Any]:
 def preprocessor(spec: Spec | ArraySpec, ds: Dataset) -> Preprocessor:
     """The spec's preprocessing (delay lines, derived inputs, detrending, scaling) fitted on ``ds``."""
     d = spec.data
+    _check_delay_lines(list(d.delay_lines), ds, spec.source)
     derived = [item.model_dump(mode="json", exclude_none=True) for item in d.derived_inputs]
     detrend = [fn if isinstance(fn, str) else fn.model_dump(mode="json") for fn in d.detrend]
     try:
         return Preprocessor.fit(ds, list(d.delay_lines), d.scaling, derived, detrend, d.delay_form)
     except ValueError as exc:
         raise DynmodelError(str(exc), f"{spec.source}: data", "correct data.derived_inputs") from None
+
+
+def _check_delay_lines(delay_lines: list[int], ds: Dataset, source: str) -> None:
+    """A delay line must see the input it delays: one that reaches back beyond the start of a recording on
+    most training samples holds the recording's first value there, a constant the model learns nothing
+    from (an ESN with a delay line as long as its training split scored 100 % NMSE without a word)."""
+    if not delay_lines:
+        return
+    rows = ds.scored("train")
+    total = sum(b - a for _, a, b in rows)
+    longest = max(delay_lines)
+    seen = sum(max(0, b - max(a, longest)) for _, a, b in rows)
+    if total and seen < 0.5 * total:
+        raise DynmodelError(
+            f"the delay line of {longest} samples reaches back before the recording's start on "
+            f"{100 * (1 - seen / total):.0f} % of the training samples, where it holds a constant",
+            f"{source}: data.delay_lines",
+            f"use delay lines shorter than {max(1, total // 2)} samples (half the training split's {total})",
+        )
 
 
 def check_plan(spec: Spec, ds: Dataset) -> Family | list[str]:

@@ -333,3 +333,12 @@ def test_a_tune_in_that_covers_the_training_split_is_one_clear_error(system):
         EchoStateNetwork(mode="external").fit(u[:20], y[:20])
     with pytest.raises(DataError, match=r"ends at sample 1600 .* shorten the model's tune-in below 1600"):
         EchoStateNetwork(mode="external", tune_in=1600).fit(u, y)
+
+
+def test_a_delay_line_longer_than_most_of_the_training_split_is_refused(system):
+    """A delay line that reaches back before the recording's start on most training samples holds a constant
+    there (seconds given as samples, say): refused with the longest sensible line; a long but usable one fits."""
+    (u, y), _ = system
+    with pytest.raises(DynmodelError, match=r"data.delay_lines: the delay line of 1500 samples .* shorter than 800"):
+        EchoStateNetwork(size=50).fit(u, y, delay_lines=[1500])
+    assert EchoStateNetwork(size=50).fit(u, y, delay_lines=[700]).model_.input_names == ["u"]
