@@ -188,6 +188,9 @@ def _fit_on_arrays(
     del options["u"], options["y"]
     from .api import fit_arrays
 
+    # scikit-learn keeps constructor arguments as given (clone checks their identity), so a dict or list
+    # changed after construction is validated and used here, as get_params reports it
+    self.params = self._validated(self._given)
     fit_arrays(self, u, y, **options)
     return self
 

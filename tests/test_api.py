@@ -342,3 +342,18 @@ def test_a_delay_line_longer_than_most_of_the_training_split_is_refused(system):
     with pytest.raises(DynmodelError, match=r"data.delay_lines: the delay line of 1500 samples .* shorter than 800"):
         EchoStateNetwork(size=50).fit(u, y, delay_lines=[1500])
     assert EchoStateNetwork(size=50).fit(u, y, delay_lines=[700]).model_.input_names == ["u"]
+
+
+def test_a_parameter_changed_in_place_is_validated_and_used_by_fit(system):
+    """scikit-learn keeps constructor arguments as given (clone checks their identity); a lags dict changed in
+    place after construction is what get_params shows, so fit validates and uses it, never the old value."""
+    (u, y), _ = system
+    model = Narx(degree=1, lags={"u": [0, 1], "y": [1]})
+    model.get_params()["lags"]["u"].append(2)
+    model.fit(u, y)
+    assert model.params.lags == {"u": [0, 1, 2], "y": [1]} == model.get_params()["lags"]
+    model.get_params()["lags"]["u"].append(-7)
+    with pytest.raises(ParameterError, match="lag -7 is negative"):
+        model.fit(u, y)
+    sklearn = pytest.importorskip("sklearn.base")
+    assert sklearn.clone(Narx(degree=2, lags={"u": [0], "y": [1]})).get_params()["degree"] == 2
