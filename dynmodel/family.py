@@ -275,6 +275,22 @@ class Family(ABC):
                 validation_summary(exc), cls.__name__, f"see help({cls.__name__}) for the allowed values"
             ) from None
 
+    #: scikit-learn < 1.6 reads the estimator type here (``is_regressor``)
+    _estimator_type = "regressor"
+
+    def __sklearn_tags__(self) -> Any:
+        """scikit-learn >= 1.6: a regressor of (n, inputs) arrays on (n,) or (n, outputs) targets, no NaN, that
+        must be fitted; so ``is_regressor``, ``cross_val_score`` and ``GridSearchCV`` take it (folds of a time
+        series: ``TimeSeriesSplit``, each fold a recording of its own)."""
+        from sklearn.utils import InputTags, RegressorTags, Tags, TargetTags
+
+        return Tags(
+            estimator_type="regressor",
+            target_tags=TargetTags(required=True, multi_output=True, single_output=True),
+            regressor_tags=RegressorTags(),
+            input_tags=InputTags(one_d_array=True, two_d_array=True, allow_nan=False),
+        )
+
     def get_params(self, deep: bool = True) -> dict[str, Any]:
         """Constructor arguments as given, declared defaults for the others (scikit-learn; ``deep``
         is accepted for compatibility: a family holds no nested estimators)."""

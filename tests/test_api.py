@@ -357,3 +357,19 @@ def test_a_parameter_changed_in_place_is_validated_and_used_by_fit(system):
         model.fit(u, y)
     sklearn = pytest.importorskip("sklearn.base")
     assert sklearn.clone(Narx(degree=2, lags={"u": [0], "y": [1]})).get_params()["degree"] == 2
+
+
+def test_scikit_learn_model_selection_takes_the_estimators(system):
+    """is_regressor, cross_val_score and GridSearchCV over folds of a time series (each fold a recording of its
+    own): the families are scikit-learn regressors, not only clone-able."""
+    pytest.importorskip("sklearn")
+    from sklearn.base import is_regressor
+    from sklearn.model_selection import GridSearchCV, TimeSeriesSplit, cross_val_score
+
+    (u, y), _ = system
+    est = Narx()  # the default: lags and degree chosen on validation
+    assert is_regressor(est) and is_regressor(EchoStateNetwork())
+    scores = cross_val_score(est, u[:, None], y, cv=TimeSeriesSplit(3))
+    assert scores.shape == (3,) and scores.min() > 0.99  # R^2 of the free run on each later fold
+    search = GridSearchCV(Narx(lags=LAGS), {"degree": [1, 2]}, cv=TimeSeriesSplit(3)).fit(u[:, None], y)
+    assert search.best_params_ == {"degree": 2}  # the system of eq. 3.37 is not linear
