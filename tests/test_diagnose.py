@@ -246,6 +246,23 @@ def test_cli_adequate_model_proposes_nothing(cli, tmp_path):
     assert "**Adequate**" in index and ", 1 recording(s), " in index
 
 
+def test_diagnose_of_an_auto_spec_names_the_model_the_search_chose(cli, tmp_path):
+    """The report, the console line and the JSON name the family auto chose and its cost, not 'auto' and
+    'None'."""
+    clean = CLEAN["narx-system"](1).spec(tmp_path)
+    clean["data"]["init_window"] = 10
+    clean["model"] = {"family": "auto", "params": {"budget": 10, "families": ["narx"]}}
+    clean.pop("cost", None)
+    clean["name"] = "auto"
+    spec = write_yaml(tmp_path / "auto.yaml", clean)
+    r = cli("diagnose", spec, "--json", tmp_path / "d.json", "--rounds", "1", "-q")
+    assert r.exit_code == 0, r.stderr
+    base = json.loads((tmp_path / "d.json").read_text())["baseline"]
+    assert base["family"] == "narx" and base["searched"] and base["cost"] == "mse_inf"
+    assert "auto -> narx (cost mse_inf)" in " ".join(r.stdout.split())
+    assert "Model `auto -> narx`, cost `mse_inf`" in (tmp_path / "auto-diagnosis" / "index.md").read_text()
+
+
 def test_cli_errors_are_one_line(cli, tmp_path):
     bad = write_yaml(
         tmp_path / "bad.yaml", {"data": {"generator": "narx-system", "n": 2000}, "model": {"family": "nax"}}

@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from .runner import Diagnosis, Round
+from .runner import Diagnosis, Round, fitted_family
 
 
 def _fmt(v: Any, digits: int = 4) -> str:
@@ -57,7 +57,8 @@ def print_diagnosis(result: Diagnosis, out: Console, metrics_table) -> None:
     base = result.baseline
     s = result.settings
     out.print(
-        f"[bold]{result.name}[/]: {base.spec.model.family} (cost {base.spec.cost}) diagnosed in "
+        f"[bold]{result.name}[/]: {fitted_family(base)} (cost {base.model.spec.get('cost') or base.spec.cost}) "
+        "diagnosed in "
         f"{result.seconds:.1f} s, {len(result.rounds)} round(s); model memory {result.rounds[0].memory} samples"
     )
     out.print(metrics_table(base.metrics, "baseline free run"))

@@ -12,7 +12,7 @@ import yaml
 
 from . import figures
 from .context import segments_of
-from .runner import Diagnosis
+from .runner import Diagnosis, fitted_family
 
 REPORT = "index.md"
 EXTENDED = "extended.yaml"
@@ -187,7 +187,8 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
     else:
         lines += ["**Adequate**: no cause is significant; nothing is proposed.", ""]
     lines += [
-        f"Model `{spec.model.family}`, cost `{spec.cost}`, {base.ds.n_loaded} recording(s), inputs "
+        f"Model `{fitted_family(base)}`, cost `{base.model.spec.get('cost') or spec.cost}`, {base.ds.n_loaded} "
+        "recording(s), inputs "
         f"{base.model.input_names}, output {base.model.output_names}, sampling time {base.ds.sampling_time:g} s; "
         f"model memory {memory if memory is not None else '–'} samples. Diagnosis took {result.seconds:.1f} s.",
         "",

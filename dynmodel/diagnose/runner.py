@@ -36,6 +36,12 @@ from .gain import measure_gain
 MIN_GAIN = 0.01
 
 
+def fitted_family(base: Any) -> str:
+    """The family of the baseline model, ``auto -> narx`` when the search chose it."""
+    name = base.model.family.name
+    return f"auto -> {name}" if base.spec.model.family == "auto" and name != "auto" else name
+
+
 @dataclass
 class Candidate:
     cause: str
@@ -188,8 +194,9 @@ class Diagnosis:
             "baseline": {
                 "metrics": base.metrics,
                 "verdict": self.verdict,
-                "family": base.spec.model.family,
-                "cost": base.spec.cost,
+                "family": base.model.family.name,  # for family: auto, the one the search chose
+                "searched": base.spec.model.family == "auto",
+                "cost": base.model.spec.get("cost") or base.spec.cost,
                 "model_memory_samples": self.rounds[0].memory,
                 "checks": [f.to_json() for f in self.checks],
                 "reference": self.reference,
