@@ -57,7 +57,7 @@ app = typer.Typer(
 )
 out = Console(soft_wrap=True, highlight=False)
 err = Console(stderr=True, soft_wrap=True, highlight=False)
-_state = {"debug": False}
+_state = {"debug": False, "json_stdout": False}
 
 
 def _version(value: bool) -> None:
@@ -74,6 +74,36 @@ def _main(
     ),
 ) -> None:
     _state["debug"] = debug
+
+
+def json_stdout(fn: Callable) -> Callable:
+    """``--json -`` writes the JSON to standard output, as ``predict --out -`` does with its table: the command
+    writes it to a temporary file, its own lines go to standard error, and the JSON follows on stdout (also
+    when the command ends with an exit code after writing it, e.g. an unreliable model)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        if str(kwargs.get("json_path")) != "-":
+            return fn(*args, **kwargs)
+        import shutil
+        import sys
+        import tempfile
+
+        global out
+        folder = Path(tempfile.mkdtemp(prefix="dynmodel-json-"))
+        kwargs["json_path"] = folder / "summary.json"
+        screen, out = out, err  # the command's own lines go to stderr
+        _state["json_stdout"] = True
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            out, _state["json_stdout"] = screen, False
+            if kwargs["json_path"].exists():
+                sys.stdout.write(kwargs["json_path"].read_text(encoding="utf-8"))
+                sys.stdout.flush()
+            shutil.rmtree(folder, ignore_errors=True)
+
+    return wrapper
 
 
 def handled(fn: Callable) -> Callable:
@@ -160,6 +190,7 @@ _FORCE = typer.Option(False, "--force", help="replace an existing file that is n
 
 @app.command()
 @handled
+@json_stdout
 def fit(
     spec: Path = typer.Argument(..., help="YAML spec"),
     out_path: Optional[Path] = typer.Option(None, "--out", help="model file (overrides the spec's output)"),
@@ -295,6 +326,7 @@ def predict(
 # ------------------------------------------------------------------------------ inspect
 @app.command()
 @handled
+@json_stdout
 def inspect(
     model_path: Path = typer.Argument(..., metavar="MODEL"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write the summary as JSON"),
@@ -336,6 +368,7 @@ def inspect(
 # ------------------------------------------------------------------------------ reliability-check
 @app.command("reliability-check")
 @handled
+@json_stdout
 def reliability_check(
     model_path: Optional[Path] = typer.Argument(None, metavar="[MODEL]", help="model file written by dynmodel fit"),
     system: Optional[str] = typer.Option(
@@ -382,6 +415,7 @@ def reliability_check(
 # ------------------------------------------------------------------------------ diagnose
 @app.command("diagnose")
 @handled
+@json_stdout
 def diagnose_cmd(
     spec: Path = typer.Argument(..., help="YAML spec of the model to diagnose"),
     report: Optional[Path] = typer.Option(
@@ -432,7 +466,7 @@ def diagnose_cmd(
     out.print(f"report written to {done.index}")
     if done.extended is not None:
         out.print(f"extended spec written to {done.extended} (run it with: dynmodel fit {done.extended})")
-    if done.json_path is not None:
+    if done.json_path is not None and not _state.get("json_stdout"):
         out.print(f"summary written to {done.json_path}")
 
 
@@ -445,6 +479,7 @@ def _print_diagnosis(result) -> None:
 # ------------------------------------------------------------------------------ sweep
 @app.command("sweep")
 @handled
+@json_stdout
 def sweep_cmd(
     spec: Path = typer.Argument(..., help="YAML spec"),
     grid: Path = typer.Option(..., "--grid", help="YAML grid: dotted spec keys and their values (docs/sweep.md)"),
@@ -512,6 +547,7 @@ def _pm(stats: dict[str, float], percent_points: bool = False) -> str:
 
 @app.command()
 @handled
+@json_stdout
 def control(
     model_path: Path = typer.Argument(..., metavar="MODEL", help="model file written by dynmodel fit"),
     plant: Optional[Path] = typer.Option(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -57,6 +58,9 @@ def test_fit_predict_inspect_round_trip(cli, tmp_path, quick_spec):
     assert r.exit_code == 0 and "sigma(C)" in r.stdout and "esn" in r.stdout
     summary = json.loads((tmp_path / "inspect.json").read_text())
     assert summary["model"]["mode"] == "external" and summary["tune_in_samples"] == 20  # the default tune-in
+    r = cli("inspect", report["model"], "--json", "-")  # '-': the JSON on stdout, the table on stderr
+    assert r.exit_code == 0 and json.loads(r.stdout) == summary and "sigma(C)" in r.stderr
+    assert not (tmp_path / "-").exists() and not Path("-").exists()
 
 
 def test_predict_says_where_the_input_leaves_the_training_range(cli, tmp_path, quick_spec):

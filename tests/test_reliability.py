@@ -374,7 +374,7 @@ def test_cli_corrupt_model_and_family_without_view(cli, tmp_path, monkeypatch):
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"not an hdf5 file at all")
     r = cli("reliability-check", bad)
-    assert r.exit_code == 2 and len(r.stderr.strip().splitlines()) == 1 and "not a readable HDF5" in r.stderr
+    assert r.exit_code == 2 and len(r.stderr.strip().splitlines()) == 1 and "not a model file" in r.stderr
 
     m = _fit("internal", 0, size=30, connectivity=None, scale=None)
     path = dynmodel.save(m, tmp_path / "m.h5")
