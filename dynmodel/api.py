@@ -13,6 +13,7 @@ are not in a file, and the input and output names, sampling time and preprocessi
 from __future__ import annotations
 
 import numbers
+import types
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -23,7 +24,7 @@ from typing import Any
 from pydantic import Field, ValidationError
 
 from . import engine
-from .columns import is_pandas, is_recording_list, recordings, select
+from .columns import index_step, is_pandas, is_recording_list, recordings, select
 from .data.dataset import SOURCE_KEYS, Dataset, LoadedSource, load_dataset
 from .errors import DataError, ModelWarning, ParameterError, SpecError
 from .family import Family, Progress, no_progress
@@ -97,7 +98,7 @@ def fit_arrays(
     validation: float | tuple[Any, Any] | None = 0.2,
     cost: str | None = None,
     seed: int = 0,
-    sampling_time: float = 1.0,
+    sampling_time: float | None = None,
     input_names: Sequence[str] | None = None,
     output_names: Sequence[str] | None = None,
     transient: int = 0,
@@ -111,6 +112,9 @@ def fit_arrays(
     """Fit ``family`` on recordings given in Python (see ``Family.fit``); returns the FittedModel, which
     is also ``family.model_``."""
     recs, ins, outs = recordings(u, y, input_names, output_names)
+    if sampling_time is None:  # the step of a time-stamped pandas index, else one unit per sample
+        first = u[0] if is_recording_list(u) else u
+        sampling_time = index_step(first) or 1.0
     sources: dict[str, LoadedSource] = {}
     if validation is None:
         split: dict[str, float] = {"train": 1.0}
@@ -188,8 +192,10 @@ def _caller_level() -> int:
 
     import dynmodel_plugins
 
-    ours = tuple(str(Path(p.__file__).resolve().parent) + os.sep for p in (sys.modules["dynmodel"], dynmodel_plugins))
-    frame, level = sys._getframe(1), 1
+    packages = (sys.modules["dynmodel"], dynmodel_plugins)
+    ours = tuple(str(Path(str(p.__file__)).resolve().parent) + os.sep for p in packages)
+    frame: types.FrameType | None = sys._getframe(1)
+    level = 1
     while frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(ours):
         frame, level = frame.f_back, level + 1
     return level

@@ -34,9 +34,30 @@ def matrix(obj: Any, what: str = "signal") -> tuple[np.ndarray, list[str] | None
     if is_pandas(obj):
         if getattr(obj, "ndim", 1) == 1:
             names = [str(obj.name)] if obj.name is not None else None
+            kinds = [(names[0] if names else what, obj.dtype)]
         else:
             names = [str(c) for c in obj.columns]
+            kinds = list(zip(names, obj.dtypes))
+        for name, dtype in kinds:  # name the channel that is not a number
+            kind = getattr(dtype, "kind", "O")
+            if kind in "mM":
+                raise DataError(
+                    f"the {what} column '{name}' holds dates or durations ({dtype}), not samples of a signal",
+                    what,
+                    "drop it (a time column belongs in the index, or in sampling_time)",
+                )
+            if kind not in "biuf":
+                try:
+                    np.asarray(obj[name] if getattr(obj, "ndim", 1) == 2 else obj, dtype=np.float64)
+                except (TypeError, ValueError) as exc:
+                    raise DataError(
+                        f"the {what} column '{name}' is not numeric ({exc})", what, "convert it to numbers or drop it"
+                    ) from None
         obj = obj.to_numpy(dtype=np.float64)
+    if np.iscomplexobj(obj):
+        raise DataError(
+            f"the {what} is complex", what, "pass real samples (e.g. the real part, or magnitude and phase as channels)"
+        )
     try:
         a = np.array(obj, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -64,6 +85,23 @@ def select(obj: Any, names: Sequence[str], what: str) -> Any:
             )
         return obj[list(names)]
     return obj
+
+
+def index_step(obj: Any, where: str = "arrays") -> float | None:
+    """The sampling time (s) of a pandas object indexed by time stamps or durations: the step of its index
+    when uniform (a DataError when it is not); None for anything else."""
+    index = getattr(obj, "index", None) if is_pandas(obj) else None
+    if index is None or getattr(index, "dtype", None) is None or index.dtype.kind not in "mM" or len(index) < 2:
+        return None
+    steps = np.diff(index.to_numpy()) / np.timedelta64(1, "s")  # seconds, whatever the index's unit
+    if steps.min() <= 0 or steps.max() - steps.min() > 1e-6 * steps.mean():
+        raise DataError(
+            f"the time index steps from {steps.min():.6g} s to {steps.max():.6g} s, not uniformly",
+            where,
+            "resample to a uniform step first (e.g. frame.resample('10ms').mean().interpolate()), or pass "
+            "sampling_time= to take the samples as equally spaced",
+        )
+    return float(steps.mean())
 
 
 def default_names(prefix: str, k: int) -> list[str]:
@@ -129,6 +167,13 @@ def recordings(
             ui = by_name(ui, ins, "input", name)
         if match_outs:
             yi = by_name(yi, outs, "output", name)
+        if is_pandas(ui) and is_pandas(yi) and not ui.index.equals(yi.index):
+            raise DataError(
+                f"the input and output of recording {i} have different indexes (first {ui.index[0]!r} and "
+                f"{yi.index[0]!r}); samples are paired by position, so they must be the same times",
+                name,
+                "align them first (e.g. frame = pd.concat([u, y], axis=1).dropna()), or pass arrays",
+            )
         ua, un = matrix(ui, "input")
         ya, yn = matrix(yi, "output")
         match_ins = match_ins or (not ins and names_columns(ui))

@@ -11,7 +11,7 @@ import numpy as np
 from . import __version__, protocol, registry
 from .data import Preprocessor, load_dataset, training_data
 from .data.dataset import Dataset
-from .errors import DynmodelError
+from .errors import DataError, DynmodelError, ParameterError
 from .family import Family, Progress, no_progress
 from .model import FittedModel, Run, evaluate
 from .threads import fit_threads
@@ -53,8 +53,10 @@ def preprocessor(spec: Spec | ArraySpec, ds: Dataset) -> Preprocessor:
     detrend = [fn if isinstance(fn, str) else fn.model_dump(mode="json") for fn in d.detrend]
     try:
         return Preprocessor.fit(ds, list(d.delay_lines), d.scaling, derived, detrend, d.delay_form)
+    except DynmodelError:
+        raise
     except ValueError as exc:
-        raise DynmodelError(str(exc), f"{spec.source}: data", "correct data.derived_inputs") from None
+        raise DataError(str(exc), f"{spec.source}: data", "correct data.derived_inputs") from None
 
 
 def _check_delay_lines(delay_lines: list[int], ds: Dataset, source: str) -> None:
@@ -68,7 +70,7 @@ def _check_delay_lines(delay_lines: list[int], ds: Dataset, source: str) -> None
     longest = max(delay_lines)
     seen = sum(max(0, b - max(a, longest)) for _, a, b in rows)
     if total and seen < 0.5 * total:
-        raise DynmodelError(
+        raise DataError(
             f"the delay line of {longest} samples reaches back before the recording's start on "
             f"{100 * (1 - seen / total):.0f} % of the training samples, where it holds a constant",
             f"{source}: data.delay_lines",
@@ -95,7 +97,7 @@ def checked_family(spec: Spec, ds: Dataset) -> Family:
     try:
         family = family_cls(**spec.model.params.model_dump(mode="python"))
     except ValueError as exc:
-        raise DynmodelError(str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params") from None
+        raise ParameterError(str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params") from None
     check_warmup(ds, family.warmup, spec.source)
     protocol.check_warmup(family, ds, spec.source)  # before a long fit, where the parameters fix it
     return family
@@ -133,8 +135,10 @@ def _fit_family(
     assert spec.cost is not None, "the cost is set for every family but auto (which searches)"
     try:
         family.fit(td, spec.cost, family_rng(spec.seed), progress)
+    except DynmodelError:
+        raise
     except ValueError as exc:
-        raise DynmodelError(
+        raise ParameterError(
             str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
         ) from exc
     protocol.check_warmup(family, ds, spec.source)

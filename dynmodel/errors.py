@@ -33,11 +33,11 @@ class DynmodelError(Exception):
         return " ".join(text.split())
 
 
-class SpecError(DynmodelError):
+class SpecError(DynmodelError, ValueError):
     """Malformed YAML, unknown key, wrong type or value in a spec."""
 
 
-class DataError(DynmodelError):
+class DataError(DynmodelError, ValueError):
     """Missing file or column, NaN/inf values, too little data for the split."""
 
 

@@ -156,7 +156,7 @@ def _fit_on_arrays(
     validation: float | tuple[Any, Any] | None = 0.2,
     cost: Literal["mse1", "mse_inf"] | None = None,
     seed: int = 0,
-    sampling_time: float = 1.0,
+    sampling_time: float | None = None,
     input_names: Sequence[str] | None = None,
     output_names: Sequence[str] | None = None,
     transient: int = 0,
@@ -177,7 +177,8 @@ def _fit_on_arrays(
     ``cost``, ``seed`` and the remaining keywords are the spec's ``cost``, ``seed`` and ``data``
     keys (scaling, transient, delay lines, derived inputs, detrending), applied exactly as
     ``dynmodel fit`` applies them (``cost`` None: the family's :attr:`default_cost`, as a spec
-    without ``cost:``). Channel names default to ``u`` / ``y`` (one channel) or ``u0``,
+    without ``cost:``). ``sampling_time`` (s): None takes the step of a uniform pandas time index
+    (DatetimeIndex, TimedeltaIndex), else 1 per sample. Channel names default to ``u`` / ``y`` (one channel) or ``u0``,
     ``u1``, ... ``progress``: a callback ``(stage, fraction, message)`` or True for progress on stderr.
 
     Afterwards ``model_`` holds the :class:`~dynmodel.model.FittedModel` (preprocessing, metrics of

@@ -120,16 +120,26 @@ class FittedModel:
         if isinstance(u, Mapping):
             missing = [n for n in self.input_names if n not in u]
             if missing:
-                raise ValueError(f"input '{missing[0]}' is missing; the model needs {self.input_names}")
+                raise DataError(
+                    f"input '{missing[0]}' is missing",
+                    "predict",
+                    f"give every input the model needs: {self.input_names}",
+                )
             u = np.column_stack([np.asarray(u[n], dtype=np.float64) for n in self.input_names])
-        u = np.asarray(u, dtype=np.float64)
-        if u.ndim == 1:
-            u = u[:, None]
-        if u.ndim != 2 or u.shape[1] != len(self.input_names):
-            raise ValueError(f"expected {len(self.input_names)} input column(s) {self.input_names}, got {u.shape[1]}")
+        if is_recording_list(u):
+            raise DataError(
+                f"got a list of {len(u)} recordings", "predict", "predict one recording at a time (score takes a list)"
+            )
+        u = matrix(u, "input")[0]
+        if u.shape[1] != len(self.input_names):
+            raise DataError(
+                f"expected {len(self.input_names)} input column(s) {self.input_names}, got {u.shape[1]}",
+                "predict",
+                "pass an array (n,) or (n, inputs) with the model's inputs in its order",
+            )
         problem = non_finite(u, self.input_names)
         if problem is not None:
-            raise ValueError(f"input {problem}")
+            raise DataError(f"input {problem}", "predict", "fill or remove those samples")
         return u
 
     def run(self, u, y_measured: np.ndarray | None = None) -> Run:
@@ -158,7 +168,13 @@ class FittedModel:
         A free run that diverges (NaN from that sample on) and an input beyond the training range by more than
         5 % of its width are said as a :class:`~dynmodel.errors.ModelWarning`, as ``dynmodel predict`` says them.
         """
-        run = self.run(u, y_tune)
+        try:
+            run = self.run(u, y_tune)
+        except DataError:
+            raise
+        except ValueError as exc:  # the family's own refusal (a tune-in it needs and lacks): the same error class
+            fix = f"pass y_tune with the first {self.warmup} measured outputs" if self.warmup else "check the input"
+            raise DataError(str(exc), "predict", fix) from None
         self._warn_about(run, self._inputs(u))
         return like_input(u, run.y, self.output_names)
 
@@ -212,7 +228,15 @@ class FittedModel:
                 return float("-inf")
             measured.append(rec.y[warm:])
             predicted.append(run.y[warm:])
-        return float(1.0 - np.mean(nmse(np.concatenate(measured), np.concatenate(predicted))) / 100.0)
+        y = np.concatenate(measured)
+        flat = [name for name, v in zip(self.output_names, y.var(axis=0)) if not v > 0]
+        if flat:  # R^2 divides by the output's variance
+            raise DataError(
+                f"the measured output '{flat[0]}' is constant after the tune-in, so R^2 is undefined",
+                "score",
+                "score on data where the output moves (or compare predict's output with it directly)",
+            )
+        return float(1.0 - np.mean(nmse(y, np.concatenate(predicted))) / 100.0)
 
     @property
     def unstable(self) -> dict[str, Any] | None:

@@ -373,3 +373,55 @@ def test_scikit_learn_model_selection_takes_the_estimators(system):
     assert scores.shape == (3,) and scores.min() > 0.99  # R^2 of the free run on each later fold
     search = GridSearchCV(Narx(lags=LAGS), {"degree": [1, 2]}, cv=TimeSeriesSplit(3)).fit(u[:, None], y)
     assert search.best_params_ == {"degree": 2}  # the system of eq. 3.37 is not linear
+
+
+def test_every_user_error_is_a_dynmodel_error_and_a_value_error(system):
+    """One hierarchy: data, spec and parameter mistakes, in fit and in predict, are DynmodelErrors and
+    ValueErrors, each one line naming the channel or parameter."""
+    (u, y), _ = system
+    model = Narx(degree=1, lags={"u": [0, 1], "y": [1]}).fit(u, y)
+    bad_u = u.copy()
+    bad_u[5] = np.nan
+    cases = [
+        (lambda: Narx(degree=1, lags={"force": [0], "y": [1]}).fit(u, y), ParameterError, "force"),
+        (lambda: Narx().fit(u, y, validation=None), ParameterError, "validation split"),
+        (lambda: model.predict(bad_u, y_tune=y[:1]), DataError, "sample 5"),
+        (lambda: model.predict(u), DataError, "y_tune"),
+        (lambda: model.predict(np.c_[u, u], y_tune=y[:1]), DataError, "expected 1 input column"),
+        (lambda: Narx().fit(u + 1j * u, y), DataError, "the input is complex"),
+        (lambda: Narx().fit(u, y * 1e-165), DataError, "variance underflows"),
+        (lambda: model.score(u, np.ones_like(y)), DataError, "constant after the tune-in"),
+    ]
+    for call, kind, words in cases:
+        with pytest.raises(kind, match=words) as caught:
+            call()
+        assert isinstance(caught.value, DynmodelError) and isinstance(caught.value, ValueError)
+        assert "\n" not in str(caught.value)
+
+
+def test_non_numeric_dataframe_columns_are_named(system):
+    pd = pytest.importorskip("pandas")
+    (u, y), _ = system
+    out = pd.Series(y, name="pos")
+    with pytest.raises(DataError, match="input column 'note' is not numeric"):
+        Narx().fit(pd.DataFrame({"force": u, "note": ["ok"] * len(u)}), out)
+    stamps = pd.Series(pd.date_range("2024-01-01", periods=len(u), freq="s"))
+    with pytest.raises(DataError, match="input column 'time' holds dates or durations"):
+        Narx().fit(pd.DataFrame({"force": u, "time": stamps}), out)
+
+
+def test_pandas_indexes_pair_and_time_the_samples(system):
+    """Input and output with different indexes are refused (paired by position they would be wrong); a uniform
+    time index gives the sampling time, a non-uniform one is refused unless sampling_time is given."""
+    pd = pytest.importorskip("pandas")
+    (u, y), _ = system
+    times = pd.date_range("2026-01-01", periods=len(u), freq="10ms")
+    with pytest.raises(DataError, match="different indexes"):
+        Narx(degree=1).fit(pd.Series(u, index=times), pd.Series(y, index=times + pd.Timedelta("1s")))
+    model = Narx(degree=1).fit(pd.Series(u, index=times, name="u"), pd.Series(y, index=times, name="y"))
+    assert model.model_.sampling_time == pytest.approx(0.01)
+    jittered = times.delete(100)
+    with pytest.raises(DataError, match="not uniformly"):
+        Narx(degree=1).fit(pd.Series(u[1:], index=jittered), pd.Series(y[1:], index=jittered))
+    given = Narx(degree=1).fit(pd.Series(u[1:], index=jittered), pd.Series(y[1:], index=jittered), sampling_time=0.01)
+    assert given.model_.sampling_time == 0.01

@@ -130,6 +130,8 @@ def predict_file(
     )
     try:
         run = model.run(inp.u, inp.y_tune)
+    except DataError:
+        raise
     except ValueError as exc:
         raise DataError(str(exc), str(input_file), "check the input file") from None
     rows = prediction.table(model, inp, run, skip_tune_in)

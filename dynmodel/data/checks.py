@@ -17,6 +17,8 @@ if TYPE_CHECKING:
 
 #: a magnitude whose square (variance, NMSE) still fits in float64 with room to spare
 OVERFLOW = 1e150
+#: a column whose typical deviation is below this has a variance that underflows float64 (1e-308)
+UNDERFLOW = 1e-150
 #: a column whose largest deviation from its median exceeds this many typical deviations spans
 #: too many orders of magnitude to be a measured signal
 GROWTH = 1e8
@@ -49,6 +51,13 @@ def _check_magnitudes(ds: Dataset, source: str) -> None:
                     scale = dev.mean()
                 if scale == 0:
                     continue
+                if scale < UNDERFLOW:  # its variance underflows: every NMSE of it would read 0 or nonsense
+                    raise DataError(
+                        f"{kind} column '{names[j]}' of '{rec.name}' varies by about {scale:.3g}, too little for "
+                        "float64 statistics (its variance underflows)",
+                        source,
+                        "rescale the column (other units)",
+                    )
                 k = int(np.argmax(dev))
                 ratio = dev[k] / scale
                 if ratio > GROWTH:

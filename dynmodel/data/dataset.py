@@ -647,11 +647,13 @@ def load_dataset(spec: Spec | ArraySpec, sources: Mapping[str, LoadedSource] | N
             split = {"train": 0.8, "test": 0.2}
     for s in given:
         if split.get(s) is not None:
-            where = "the benchmark's test sets" if bench is not None else f"a separate data.{s} source"
+            if sources:  # dynmodel.fit(spec, data={...})
+                where, fix = f"the '{s}' recording of data=", f"remove {s} from the spec's data.split or from data="
+            else:
+                where = "the benchmark's test sets" if bench is not None else f"a separate data.{s} source"
+                fix = "remove it from data.split"
             raise SpecError(
-                f"the {s} split is given twice: in data.split and as {where}",
-                f"{spec.source}: data.split.{s}",
-                "remove it from data.split",
+                f"the {s} split is given twice: in data.split and as {where}", f"{spec.source}: data.split.{s}", fix
             )
     if split.get("train") is None:
         raise SpecError(
