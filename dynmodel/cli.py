@@ -58,6 +58,8 @@ app = typer.Typer(
 out = Console(soft_wrap=True, highlight=False)
 err = Console(stderr=True, soft_wrap=True, highlight=False)
 _state = {"debug": False, "json_stdout": False}
+#: the metavar of a flag: none (typer would show "<bool>", as if it took a value)
+FLAG = " "
 
 
 def _version(value: bool) -> None:
@@ -68,9 +70,9 @@ def _version(value: bool) -> None:
 
 @app.callback()
 def _main(
-    debug: bool = typer.Option(False, "--debug", help="show tracebacks for errors"),
+    debug: bool = typer.Option(False, "--debug", help="show tracebacks for errors", metavar=FLAG),
     version: bool = typer.Option(
-        False, "--version", callback=_version, is_eager=True, help="print the version and exit"
+        False, "--version", callback=_version, is_eager=True, help="print the version and exit", metavar=FLAG
     ),
 ) -> None:
     _state["debug"] = debug
@@ -185,7 +187,9 @@ def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
 
 
 # ------------------------------------------------------------------------------ fit
-_FORCE = typer.Option(False, "--force", help="replace an existing file that is not a previous output of this kind")
+_FORCE = typer.Option(
+    False, "--force", help="replace an existing file that is not a previous output of this kind", metavar=FLAG
+)
 
 
 @app.command()
@@ -197,7 +201,7 @@ def fit(
     json_path: Optional[Path] = typer.Option(None, "--json", help="write metrics and model path as JSON"),
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of measured vs free-running output"),
     seed: Optional[int] = typer.Option(None, "--seed", min=0, help="override the spec's seed"),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output", metavar=FLAG),
     force: bool = _FORCE,
     workers: Optional[int] = typer.Option(
         None, "--workers", min=1, help="family auto: parallel fits (default one per core; 1: in this process)"
@@ -258,7 +262,7 @@ def _print_search(record: dict[str, Any]) -> None:
 @handled
 def validate(
     spec: Path = typer.Argument(..., help="YAML spec"),
-    resolved: bool = typer.Option(False, "--resolved", help="print the full resolved spec as YAML"),
+    resolved: bool = typer.Option(False, "--resolved", help="print the full resolved spec as YAML", metavar=FLAG),
 ) -> None:
     """Check a spec and its data without fitting: keys, files, columns, values, split sizes, the output path."""
     import yaml
@@ -300,6 +304,7 @@ def predict(
         "--skip-tune-in",
         help="leave out the tune-in rows (by default they hold the measured outputs the model was fed, "
         "marked 1 in a 'measured' column)",
+        metavar=FLAG,
     ),
     force: bool = _FORCE,
 ) -> None:
@@ -330,7 +335,7 @@ def predict(
 def inspect(
     model_path: Path = typer.Argument(..., metavar="MODEL"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write the summary as JSON"),
-    spec: bool = typer.Option(False, "--spec", help="also print the resolved spec"),
+    spec: bool = typer.Option(False, "--spec", help="also print the resolved spec", metavar=FLAG),
     force: bool = _FORCE,
 ) -> None:
     """Summarize a saved model: family, data, preprocessing, metrics, provenance."""
@@ -392,7 +397,7 @@ def reliability_check(
         help="replicas count as converged within this fraction of the state-space diagonal",
     ),
     seed: int = typer.Option(0, "--seed", min=0, help="seed of initial states and noise inputs"),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output", metavar=FLAG),
     force: bool = _FORCE,
 ) -> None:
     """Does the model forget its initial state? Replica test, Lyapunov exponents, constant-input scan
@@ -438,7 +443,7 @@ def diagnose_cmd(
     max_lag: Optional[int] = typer.Option(None, "--max-lag", min=1, help="largest lag searched for delays (samples)"),
     candidates: int = typer.Option(6, "--candidates", min=1, help="extensions measured per round"),
     seed: int = typer.Option(0, "--seed", min=0, help="seed of the gain's block bootstrap"),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output", metavar=FLAG),
     force: bool = _FORCE,
 ) -> None:
     """Show what the model's free run gets wrong, name the cause, extend the model and measure the gain
@@ -493,9 +498,11 @@ def sweep_cmd(
         None, "--out", help="output folder (default: <name>-sweep next to the spec)"
     ),
     keep: str = typer.Option("best", "--keep", help="models written to the folder: best, all or none"),
-    resume: bool = typer.Option(False, "--resume", help="continue the sweep in --out: run only unfinished points"),
+    resume: bool = typer.Option(
+        False, "--resume", help="continue the sweep in --out: run only unfinished points", metavar=FLAG
+    ),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write the results (as results.json) here too"),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output", metavar=FLAG),
     force: bool = _FORCE,
 ) -> None:
     """Fit the spec at every point of a grid of settings, in parallel (local processes or Dask), and rank
@@ -573,7 +580,7 @@ def control(
     plot: Optional[Path] = typer.Option(
         None, "--plot", help="PNG of the tracking error before and after the switch (fig. 6.25)"
     ),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress output", metavar=FLAG),
     force: bool = _FORCE,
 ) -> None:
     """Feed-forward control (thesis 6.4): P-control of a plant, the model's force added from the switch on;
