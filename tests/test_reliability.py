@@ -498,3 +498,52 @@ def test_leaky_esn_with_delay_lines(leak):
     assert r.verdict.verdict == "reliable"
     assert all(s.status == "converged" for s in r.signals)
     assert_consistent(r)
+
+
+def test_narx_models_are_checked_from_the_past_outputs_a_recording_presents():
+    """A NARX model's state is its past outputs. Its view reproduces the free run exactly (step and tangent);
+    a stable linear model forgets where it started (reliable); a double integrator never does (unreliable:
+    its position remembers the start)."""
+    from conftest import narx as narx_data
+
+    from dynmodel_plugins.narx import Narx
+
+    u, y = narx_data(3000, 1)
+    stable = Narx(degree=1, lags={"u": [0], "y": [1, 2]}).fit(u, y)
+    view = stable.driven_system()
+    assert view.state_is_tune_in and view.state_dim == 2
+    um = stable.model_.preprocessor.inputs(u[:, None])
+    ym = stable.model_.preprocessor.outputs(y[:, None])
+    sim = stable.simulate(um, ym[:2]).y[:, 0]
+    X, V = np.array([[sim[1], sim[0]]]), view.drive(um)
+    for t in range(2, 400):
+        X = view.step(X, V[t : t + 1])
+        assert X[0, 0] == pytest.approx(sim[t], abs=1e-12)
+    assert check_model(stable.model_, Settings(replicas=8, scan_replicas=8, length=800)).verdict.verdict == "reliable"
+
+    rng = np.random.default_rng(2)
+    force = rng.standard_normal(3000)
+    position = np.cumsum(np.cumsum(0.01 * force))  # a double integrator
+    drift = Narx(degree=1, lags={"u": [1], "y": [1, 2]}).fit(force, position, validation=0.2)
+    r = check_model(drift.model_, Settings(replicas=8, scan_replicas=8, length=800))
+    assert r.verdict.verdict == "unreliable"
+
+
+def test_narx_tangent_matches_finite_differences():
+    from conftest import narx as narx_data
+
+    from dynmodel_plugins.narx import Narx
+
+    u, y = narx_data(2000, 3)
+    view = Narx(degree=3, lags={"u": [0, 1], "y": [1, 2]}).fit(u, y).driven_system()
+    rng = np.random.default_rng(0)
+    X, V = 0.5 * rng.standard_normal((4, view.state_dim)), view.drive(0.5 * rng.standard_normal((4, 1)))
+    E = np.repeat(np.eye(view.state_dim)[None], 4, axis=0)
+    F, DE = view.tangent(X, V, E)
+    h, J = 1e-6, np.zeros_like(DE)
+    for m in range(view.state_dim):
+        step = np.zeros(view.state_dim)
+        step[m] = h
+        J[:, :, m] = (view.step(X + step, V) - view.step(X - step, V)) / (2 * h)
+    np.testing.assert_array_equal(F, view.step(X, V))
+    np.testing.assert_allclose(DE, J, atol=1e-7)

@@ -41,6 +41,8 @@ class ModelSystem(DrivenSystem):
         self.rest_state = inner.rest_state
         self.closed_loop = inner.closed_loop
         self.reference_note = ""
+        record = None if model.train_output is None else pre.outputs(np.asarray(model.train_output, dtype=np.float64))
+        inner.fit_outputs(*training_output_range(model.bounds), record)
         u = model.train_input
         if u is not None and len(u):
             u = np.asarray(u, dtype=np.float64).reshape(len(u), -1)

@@ -143,6 +143,9 @@ class DrivenSystem(ABC):
     rest_state: np.ndarray | None = None
     #: external-mode models: the output feedback; None otherwise
     closed_loop: ClosedLoop | None = None
+    #: the state is the past outputs a run starts from, measured (NARX): the check tells whether the model forgets
+    #: them; a diagnosis does not read an unreliable verdict as a fault of its residual (its runs start measured)
+    state_is_tune_in: bool = False
     #: recorded inputs (n, inputs.n) in input space and segment lengths, when available
     training_input: np.ndarray | None = None
     training_lengths: np.ndarray | None = None
@@ -165,6 +168,12 @@ class DrivenSystem(ABC):
 
         E has shape (R, M, k); for flows the variational equation is integrated with the state.
         """
+
+    def fit_outputs(self, low: np.ndarray, high: np.ndarray, record: np.ndarray | None = None) -> None:
+        """The model-space training output range (per output) and the training outputs (n, outputs) when the
+        model file holds them, for a view whose state holds past outputs (NARX): it starts its replicas from
+        states a recording can present. The default ignores them."""
+        return None
 
     # -- where to start --------------------------------------------------------------------
     @abstractmethod

@@ -754,6 +754,22 @@ class Narx(Family):
             self.ridge_ = dict(attrs["ridge"])
         return self
 
+    def driven_system(self):
+        """The free run as a driven system whose state is the past outputs (``plugins/narx/reliability.py``),
+        for ``dynmodel reliability-check``: does the model forget the outputs it started from?"""
+        from .reliability import NarxSystem
+
+        self.check_fitted()
+        return NarxSystem(
+            self.embedding_,
+            self.exponents_,
+            self.term_output_,
+            self.weights_,
+            self.n_inputs_,
+            self.n_outputs_,
+            (self.clip_lo_, self.clip_hi_),
+        )
+
     def summary(self) -> dict[str, Any]:
         info: dict[str, Any] = {
             "regressors": [r.label for r in self.embedding_.regressors],
