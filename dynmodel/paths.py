@@ -421,7 +421,24 @@ def check_outputs(
                     str(p),
                     f"give {opt} another name",
                 )
+        for q, other_kind, other in given:
+            if other_kind == "report" and q != p and _inside(p, q):  # the report writes its own files there
+                raise OutputError(
+                    f"{opt} lies inside the report folder of {other}, whose files the report writes (index.md, "
+                    "extended.yaml, figures)",
+                    str(p),
+                    f"give {opt} a path outside {q}",
+                )
         check_output(p, kind, inputs, force, option=opt, columns=(columns or {}).get(opt))
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    """Is ``path`` within ``folder`` (both resolved, symbolic links followed)?"""
+    try:
+        path.resolve().relative_to(folder.resolve())
+    except ValueError:
+        return False
+    return True
 
 
 def _suggest(p: Path, kind: str) -> str:

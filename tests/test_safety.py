@@ -116,6 +116,11 @@ def test_report_folders(folder):
         paths.check_output(folder, "report")
     with pytest.raises(OutputError, match="the report needs a folder"):
         paths.check_output(folder / "run.csv", "report")
+    # a summary inside the report folder would be replaced by the report's own index.md, or replace it
+    for inside in ("old/index.md", "old/sub/summary.json"):
+        with pytest.raises(OutputError, match="--json lies inside the report folder of --report"):
+            paths.check_outputs([(folder / "old", "report", "--report"), (folder / inside, "json", "--json")])
+    paths.check_outputs([(folder / "old", "report", "--report"), (folder / "summary.json", "json", "--json")])
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
