@@ -59,14 +59,24 @@ def measured_vs_simulated(
         if tune_in:
             for ax in (full, err):
                 ax.axvspan(t[0], t[min(tune_in, n - 1)], color="#bbbbbb", alpha=0.5, lw=0)
-        full.plot(t, y[:, k], lw=0.6, color="#333333", label="measured")
+        measured = bool(np.isfinite(y[:, k]).any())  # predict on inputs alone has no measured output
+        if measured:
+            full.plot(t, y[:, k], lw=0.6, color="#333333", label="measured")
         full.plot(t, yhat[:, k], lw=0.6, color="#d62728", label="free run")
         full.set_ylabel(names[k])
         full.legend(loc="upper right", fontsize=8)
         a, b = zoom
-        near.plot(t[a:b], y[a:b, k], lw=1.0, color="#333333", label="measured")
+        if measured:
+            near.plot(t[a:b], y[a:b, k], lw=1.0, color="#333333", label="measured")
         near.plot(t[a:b], yhat[a:b, k], lw=1.0, color="#d62728", ls="--", label="free run")
         near.set_ylabel(f"{names[k]} (zoom)")
+        if not measured:
+            err.set_yticks([])
+            err.set_xlim(t[0], t[-1]) if n > 1 else None
+            err.text(
+                0.5, 0.5, "no measured output: no error to show", ha="center", va="center", transform=err.transAxes
+            )
+            continue
         err.plot(t, yhat[:, k] - y[:, k], lw=0.5, color="#1f77b4")
         err.set_ylabel("free run - measured")
         if lim is not None:
@@ -78,7 +88,7 @@ def measured_vs_simulated(
             if e.size:
                 span = min(float(np.max(np.abs(e))) * 1.1, width) or 1.0
                 err.set_ylim(-span, span)
-    axes[-1, 0].set_xlabel("time")
+    axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)

@@ -189,7 +189,8 @@ def plot_fit(path: Path, ds: Dataset, runs: list[Run], model: FittedModel, name:
         r.y,
         runs[rec].y,
         model.output_names,
-        f"{name}: {r.name}",
+        f"{name}: {r.name}"
+        + (f" (recording {rec + 1} of {len(ds.recordings)}, the test's)" if len(ds.recordings) > 1 else ""),
         spans,
         zoom=(start, min(r.n, start + 400)),
         tune_in=model.warmup,
