@@ -251,6 +251,14 @@ def _print_search(record: dict[str, Any]) -> None:
     for row in rows:
         table.add_row(*[escape(c) for c in table_cells(row)])
     out.print(table)
+    measured = sum(1 for c in record["candidates"] if c.get("levels"))
+    if measured > len(rows):
+        out.print(
+            f"... and {measured - len(rows)} more candidates: every one, with its parameters and verdict, is in "
+            "the record (fit --json, the model file's /search, dynmodel inspect --json)",
+            markup=False,
+            soft_wrap=True,
+        )
     if any(r["level"] != "full" for r in rows):
         out.print(SCREENED, markup=False)
     for note in record.get("notes") or []:
@@ -357,12 +365,15 @@ def inspect(
     prov = model.provenance
     for key in PROVENANCE:
         if key in prov:
-            facts.add_row(key, escape(str(prov[key])))
+            value = str(prov[key])
+            if key == "seed" and model.search is not None and model.spec.get("seed") not in (None, prov[key]):
+                # the search derives each candidate's seed from the spec's; --spec gives the one that refits it
+                value = f"{prov[key]} (the search's; this model was fitted with seed {model.spec['seed']})"
+            facts.add_row(key, escape(value))
     out.print(facts)
-    if model.search is not None:
-        from .search.report import headline
-
-        out.print(f"chosen by family auto: {headline(model.search)}", markup=False, soft_wrap=True)
+    if model.search is not None:  # the leaderboard the fit printed
+        out.print("chosen by family auto:", markup=False)
+        _print_search(model.search)
     out.print(metrics_table(model.metrics, "free-run metrics"))
     if result.note:
         out.print(f"note: {result.note}", markup=False, soft_wrap=True)
