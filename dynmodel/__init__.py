@@ -40,6 +40,14 @@ def fit(spec: Spec | dict | str | Path, data: Any = None, progress: Any = None) 
     the spec's input and output columns, a list of these, or ``{"train": ..., "validation": ...,
     "test": ...}`` (see :func:`dynmodel.api.fit_spec`). ``progress``: a callback ``(stage, fraction,
     message)``, or True for progress on stderr."""
+    from collections.abc import Mapping
+
+    from .errors import ParameterError
+
+    if not isinstance(spec, (Spec, Mapping, str, Path)):
+        raise ParameterError(
+            f"spec is a {type(spec).__name__}", "dynmodel.fit", "pass a YAML path, a mapping or a loaded spec"
+        )
     if data is not None:
         from .api import fit_spec
 

@@ -87,6 +87,12 @@ def progress_reporter(progress: Progress | bool | None):
 
     if progress is True:
         return Reporter()
+    if progress not in (None, False) and not callable(progress):
+        raise ParameterError(
+            f"progress={progress!r} is neither True nor a callable",
+            "fit",
+            "pass progress=True (a live line on stderr), a function (stage, fraction, message), or None",
+        )
     return nullcontext(progress or no_progress)
 
 

@@ -425,3 +425,11 @@ def test_pandas_indexes_pair_and_time_the_samples(system):
         Narx(degree=1).fit(pd.Series(u[1:], index=jittered), pd.Series(y[1:], index=jittered))
     given = Narx(degree=1).fit(pd.Series(u[1:], index=jittered), pd.Series(y[1:], index=jittered), sampling_time=0.01)
     assert given.model_.sampling_time == 0.01
+
+
+def test_a_wrong_spec_or_progress_argument_is_one_clear_error(system):
+    (u, y), _ = system
+    with pytest.raises(ParameterError, match="spec is a NoneType"):
+        dynmodel.fit(None, data=(u, y))
+    with pytest.raises(ParameterError, match="progress=5 is neither True nor a callable"):
+        Narx().fit(u, y, progress=5)
