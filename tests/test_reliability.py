@@ -451,15 +451,13 @@ def test_slow_convergence_is_inconclusive_and_a_longer_run_settles_it():
     slow = [x for x in r.signals if x.status == "slow"]
     assert slow and all(abs(x.rate - np.log(0.99)) < 2e-3 for x in slow)
     need = max(x.steps_needed for x in slow)
-    assert 1000 < need < 2500  # 0.99^t from a spread of about 2 down to the tolerance 2e-6
+    # 0.99^t from a spread of about 2 down to the tolerance 2e-6 takes about 1400 steps; the advice doubles it
+    assert 2000 < need < 5000
     assert f"rerun with --length {need}" in " ".join(r.verdict.unsettled)
     assert r.length_needed >= need
-    first = r.length_needed
-    for _ in range(3):  # what a user does: rerun with the length the report asks for
-        r = check(s, Settings(replicas=6, scan_replicas=8, length=int(1.1 * r.length_needed), levels=5))
-        if r.verdict.verdict != "inconclusive":
-            break
-    assert r.verdict.verdict == "reliable" and r.length <= 3 * first
+    # what a user does: rerun once with the length the report asks for, and the test settles
+    r = check(s, Settings(replicas=6, scan_replicas=8, length=r.length_needed, levels=5))
+    assert r.verdict.verdict == "reliable"
     assert_consistent(r)
 
 
