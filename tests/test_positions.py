@@ -41,6 +41,10 @@ def test_a_position_has_a_deadband_and_noise_or_a_held_pressure_has_none():
     assert position_like(held) is None  # set per recording: it barely moves within any of them
     assert position_like([np.zeros(100)]) is None
     assert position_like([np.linspace(0, 1, 500)]) is None  # never reverses: no direction to tell
+    # a force held for 40 samples at random levels reverses rarely, but jumps: no position, no direction
+    stepped = np.repeat(np.random.default_rng(2).uniform(-1, 1, 150), 40)
+    assert position_like([stepped]) is None
+    assert position_like([stepped + 0.02 * _slow(6000, 3)]) is None  # with a little drift between the jumps
 
 
 def _ctx(positions: dict[str, float], data: dict | None = None) -> SearchContext:

@@ -94,12 +94,20 @@ POSITION_STROKE = 20
 DEADBAND_FRACTION = 0.005
 #: an input held in every recording (it moves less than this fraction of its span within each) is no position
 HELD_FRACTION = 0.1
+#: a position moves in small steps: when the largest :data:`JUMP_SHARE` of its steps carry more than this share
+#: of its whole path (sum of |u_t - u_{t-1}|), the input jumps between held values (a stepped or piecewise-constant
+#: force, with or without noise or drift between the jumps) and is no position. Measured: a sampled sine 0.08,
+#: the EMPS force command 0.46, a force held for 20-50 samples at random levels 1.0 (0.97 with drift)
+JUMP_PATH = 0.7
+#: the share of the steps (the largest) that :data:`JUMP_PATH` is measured on
+JUMP_SHARE = 0.05
 
 
 def position_like(pieces: Sequence[np.ndarray]) -> float | None:
     """The reversal deadband of a 1-D input given in ``pieces`` (recordings) when it moves like a position:
     fewer than one reversal per :data:`POSITION_STROKE` samples with a deadband of :data:`DEADBAND_FRACTION` of
-    its 1-99 % span; None otherwise (a noise-like input, or one held in every recording, as a set pressure)."""
+    its 1-99 % span; None otherwise (a noise-like input, one that jumps between held values, or one held in every
+    recording, as a set pressure)."""
     pieces = [np.asarray(p, dtype=np.float64) for p in pieces if len(p)]
     if not pieces:
         return None
@@ -107,6 +115,10 @@ def position_like(pieces: Sequence[np.ndarray]) -> float | None:
     deadband = DEADBAND_FRACTION * float(hi - lo)
     moving = max(float(np.subtract(*np.quantile(p, [0.99, 0.01]))) for p in pieces)
     if not deadband > 0 or moving < HELD_FRACTION * (hi - lo):
+        return None
+    steps = np.sort(np.concatenate([np.abs(np.diff(p)) for p in pieces]))
+    largest = steps[len(steps) - max(1, int(JUMP_SHARE * len(steps))) :]
+    if not steps.sum() > 0 or largest.sum() > JUMP_PATH * steps.sum():
         return None
     count = sum(int(np.sum(d[1:] != d[:-1])) for d in (reversals(p, deadband)[0] for p in pieces))
     n = sum(len(p) for p in pieces)
