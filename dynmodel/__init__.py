@@ -53,14 +53,19 @@ def fit(spec: Spec | dict | str | Path, data: Any = None, progress: Any = None) 
 
         return fit_spec(spec, data, progress)
     from . import engine
-    from .api import progress_reporter
+    from .api import progress_reporter, warn_if_useless
+    from .data import load_dataset
 
-    if isinstance(spec, dict):
-        spec = validate_spec(spec)
+    if isinstance(spec, Mapping):
+        spec = validate_spec(dict(spec))
     elif not isinstance(spec, Spec):
         spec = load_spec(spec)
     with progress_reporter(progress) as report:
-        return engine.fit(spec, report)
+        report("data", None, "loading")
+        ds = load_dataset(spec)
+        model, runs = engine.fit_dataset(spec, ds, report)
+    warn_if_useless(model, ds, runs)  # as on arrays: a model of little use is never silent
+    return model
 
 
 def sweep(spec, grid, executor=None, **options):
