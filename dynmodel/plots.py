@@ -72,7 +72,8 @@ def measured_vs_simulated(
         near.set_ylabel(f"{names[k]} (zoom)")
         if not measured:
             err.set_yticks([])
-            err.set_xlim(t[0], t[-1]) if n > 1 else None
+            if n > 1:
+                err.set_xlim(t[0], t[-1])
             err.text(
                 0.5, 0.5, "no measured output: no error to show", ha="center", va="center", transform=err.transAxes
             )
