@@ -231,13 +231,23 @@ def spec_inputs(spec: Spec, spec_path: PathLike | None = None) -> dict[str, list
     data = spec.resolved().get("data") or {}
     found: list[Path] = []
 
+    def paths_of(p: Any) -> None:
+        """A ``path`` value: a file, a list of files, or ``{input: file, output: file}`` (or lists of these)."""
+        if isinstance(p, str):
+            found.append(Path(p))
+        elif isinstance(p, list):
+            for item in p:
+                paths_of(item)
+        elif isinstance(p, dict):
+            for value in p.values():
+                paths_of(value)
+
     def walk(node: Any) -> None:
         if isinstance(node, dict):
-            p = node.get("path")
-            if isinstance(p, str):
-                found.append(Path(p))
-            elif isinstance(p, list):
-                found.extend(Path(x) for x in p if isinstance(x, str))
+            paths_of(node.get("path"))
+            root = node.get("root") if node.get("benchmark") else None
+            if isinstance(root, str) and Path(root).is_dir():  # a benchmark reads the files of its folder
+                found.extend(f for f in sorted(Path(root).rglob("*"))[:5000] if f.is_file())
             for key, value in node.items():
                 if key != "path":
                     walk(value)

@@ -340,3 +340,15 @@ def _target_cases():
 @pytest.mark.parametrize("spec_name, key, target", list(_target_cases()))
 def test_the_shipped_benchmark_specs_reach_the_issue_targets(shipped, spec_name, key, target):
     assert shipped(spec_name)[key]["rmse"] <= target
+
+
+def test_the_files_of_a_benchmark_folder_are_never_written(tmp_path):
+    """A benchmark source reads its folder: none of its files may take an output, even with --force."""
+    from dynmodel import paths
+    from dynmodel.errors import OutputError
+
+    root = write("emps", tmp_path / "emps")
+    spec = _spec("emps", root)
+    target = next(f for f in sorted(root.iterdir()) if f.is_file())
+    with pytest.raises(OutputError, match="this is the data file the command reads"):
+        paths.check_output(target, "json", paths.spec_inputs(spec), force=True)

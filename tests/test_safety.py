@@ -144,6 +144,14 @@ def test_spec_inputs_and_safe_names(folder):
     roles = paths.spec_inputs(spec, folder / "s.yaml")
     assert roles["spec"] == [folder / "s.yaml"]
     assert sorted(p.name for p in roles["data file"]) == ["run.csv", "test.csv"]
+    # inputs and outputs in files of their own, and a benchmark's folder: every file is an input
+    u, y = narx(200, 1)
+    write_csv(folder / "in.csv", {"t": np.arange(200.0), "u": u})
+    write_csv(folder / "out.csv", {"t": np.arange(200.0), "y": y})
+    pair = _spec(folder, path={"input": "in.csv", "output": "out.csv"}, time_column="t")
+    assert sorted(p.name for p in paths.spec_inputs(pair)["data file"]) == ["in.csv", "out.csv"]
+    with pytest.raises(OutputError, match="this is the data file the command reads"):
+        paths.check_output(folder / "out.csv", "json", paths.spec_inputs(pair), force=True)
     assert paths.safe_name("x" * 300) == "x" * 80
     assert paths.safe_name("my model/v2: µ") == "my-model-v2"
     assert paths.safe_name("///") == "model"
