@@ -247,15 +247,27 @@ class FittedModel:
         return None
 
 
+def _run_or_unknown(model: FittedModel, u: np.ndarray, tune: np.ndarray | None) -> Run:
+    """The free run of a recording; all NaN when its tune-in outputs are unknown (a test set whose outputs are
+    held back, NaN): a model that starts from measured outputs cannot run there, and nothing is scored."""
+    if tune is not None and not np.isfinite(tune).all():
+        return Run(np.full((len(u), len(model.output_names)), np.nan), None)
+    return model.run(u, tune)
+
+
 def evaluate(
     model: FittedModel, ds: Dataset, metrics: Sequence[str] = DEFAULT_METRICS, one_step: bool = True
 ) -> tuple[dict[str, Any], list[Run]]:
     """Free-run every recording from its first sample to its end and score each split."""
     warm = model.warmup
-    runs = [model.run(r.u, r.y[:warm] if warm else None) for r in ds.recordings]
+    runs = [_run_or_unknown(model, r.u, r.y[:warm] if warm else None) for r in ds.recordings]
     one: list[np.ndarray] | None = None
     if one_step:
-        preds = [model.predict_one_step(r.u, r.y) for r in ds.recordings]
+        # one step ahead needs the measured outputs: none for a recording whose outputs are unknown (NaN)
+        preds = [
+            model.predict_one_step(r.u, r.y) if np.isfinite(r.y[: max(warm, 1)]).all() else np.full(r.y.shape, np.nan)
+            for r in ds.recordings
+        ]
         one = [p for p in preds if p is not None]
         if len(one) < len(preds):
             one = None
@@ -273,7 +285,12 @@ def evaluate(
         y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
         if not unstable and rows and not np.isfinite(y).all():  # a test set whose outputs are unknown (NaN)
             entry.update({m: None for m in metrics})
-            entry["unscored"] = "the measured outputs are unknown (NaN)"
+            entry["unscored"] = "the measured outputs are unknown (NaN)" + (
+                f"; the model starts from {warm} measured outputs, so it was not run there (predict it from "
+                "rest with a model that needs none, or give the first outputs)"
+                if warm and all(not np.isfinite(runs[r].y).any() for r, _, _ in rows)
+                else ""
+            )
             if one is not None:
                 entry["nmse_1"] = None
             out[split] = entry

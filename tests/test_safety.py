@@ -582,3 +582,22 @@ def test_predict_says_when_the_predicted_output_leaves_the_training_range(tmp_pa
     (note,) = predict_file(tmp_path / "m.h5", tmp_path / "big.csv").output_notes()
     assert note.startswith("the predicted output 'y' leaves the training output range by") and "from sample" in note
     assert "starts from rest" not in note  # a NARX model's state is its measured tune-in
+
+
+def test_a_test_file_with_unknown_outputs_is_unscored_not_a_crash(cli, tmp_path):
+    """Test outputs held back (NaN): a NARX model starts from measured outputs, so it cannot run there; the fit
+    says the split is not scored and why (it ended in an internal error after the whole fit)."""
+    u, y = narx(1500, 1)
+    ut, _ = narx(500, 2)
+    write_csv(tmp_path / "run.csv", {"t": np.arange(1500.0), "u": u, "y": y})
+    write_csv(tmp_path / "hidden.csv", {"t": np.arange(500.0), "u": ut, "y": np.full(500, np.nan)})
+    (tmp_path / "s.yaml").write_text(
+        "data: {path: run.csv, input: [u], output: [y], test: {path: hidden.csv}}\n"
+        "model: {family: narx, params: {degree: 1}}\n"
+    )
+    r = cli("fit", tmp_path / "s.yaml", "--json", tmp_path / "f.json", "-q")
+    assert r.exit_code == 0, r.stderr
+    report = json.loads((tmp_path / "f.json").read_text())
+    assert report["metrics"]["test"]["nmse"] is None
+    (note,) = [n for n in report["notes"] if "not scored" in n]
+    assert "measured outputs, so it was not run there" in note

@@ -55,6 +55,11 @@ class FitResult:
                 f"noise of std {noise.std:g} x the output std was added to the {', '.join(noise.splits)} outputs; "
                 "those splits are scored against the noisy outputs"
             )
+        notes += [
+            f"the {split} split is not scored: {m['unscored']}"
+            for split, m in self.model.metrics.items()
+            if m.get("unscored")
+        ]
         notes += self.dataset.excursion_notes()
         notes += [
             note
