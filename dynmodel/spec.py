@@ -18,6 +18,7 @@ from typing import Annotated, Any, Literal, Optional, Union, cast, get_args, get
 import yaml
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Discriminator,
     Field,
@@ -33,6 +34,24 @@ from typing_extensions import Self
 from . import registry
 from .errors import SpecError
 from .metrics import DEFAULT_METRICS, MetricName
+
+#: field separators by name, and as written in single-quoted YAML (where '\t' stays a backslash and a t)
+DELIMITER_NAMES = {"tab": "\t", "\\t": "\t", "comma": ",", "semicolon": ";", "space": " ", "pipe": "|"}
+
+
+def _delimiter(value: Any) -> Any:
+    """One character; ``tab``, ``comma``, ``semicolon``, ``space``, ``pipe`` or ``\t`` name one."""
+    if isinstance(value, str):
+        value = DELIMITER_NAMES.get(value.strip().lower() if value.strip() else value, value)
+        if len(value) != 1:
+            raise ValueError(
+                f"the delimiter {value!r} is not one character: give one (',', ';', '|') or a name: tab, comma, "
+                "semicolon, space, pipe"
+            )
+    return value
+
+
+Delimiter = Annotated[str, BeforeValidator(_delimiter)]
 
 SPLITS = ("train", "validation", "test")
 SplitName = Literal["train", "validation", "test"]
@@ -146,7 +165,11 @@ class FileSourceFields(StrictModel):
     output: list[Union[str, int]] = Field(min_length=1, description="output columns")
     header: bool = Field(True, description="text files: first row holds the column names")
     columns: Optional[list[str]] = Field(None, description="names for the columns of a headerless text file")
-    delimiter: Optional[str] = Field(None, description="text files: field separator (detected when omitted)")
+    delimiter: Optional[Delimiter] = Field(
+        None,
+        description="text files: field separator, one character or tab, comma, semicolon, space, pipe (detected "
+        "when omitted)",
+    )
     segments: Optional[list[tuple[int, int]]] = Field(
         None, description="several recordings inside one file, as [start, stop) sample ranges"
     )
@@ -172,7 +195,7 @@ class SeparateSource(StrictModel):
     output: Optional[list[Union[str, int]]] = None
     header: Optional[bool] = None
     columns: Optional[list[str]] = None
-    delimiter: Optional[str] = None
+    delimiter: Optional[Delimiter] = None
     segments: Optional[list[tuple[int, int]]] = None
     sampling_time: Optional[float] = Field(None, gt=0)
     time_column: Optional[Union[str, int]] = None
@@ -759,15 +782,26 @@ class _UniqueKeyLoader(yaml.SafeLoader):
 
 
 def _construct_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False):
+    """A mapping whose own keys are unique (a merged ``<<: *anchor`` may be overridden, as YAML allows) and
+    hashable."""
     seen: dict[Any, Any] = {}
     for key_node, _ in node.value:
+        if key_node.tag == "tag:yaml.org,2002:merge":
+            continue
         key = loader.construct_object(key_node, deep=deep)
+        try:
+            hash(key)
+        except TypeError:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"a {'list' if isinstance(key, list) else 'mapping'} is used as a key", key_node.start_mark
+            ) from None
         if key in seen:
             mark = key_node.start_mark
             raise yaml.constructor.ConstructorError(
                 None, None, f"duplicate key '{key}' (first at line {seen[key] + 1})", mark
             )
         seen[key] = key_node.start_mark.line
+    loader.flatten_mapping(node)  # merge keys (<<: *defaults), as the safe loader does
     return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
 
 
@@ -797,6 +831,14 @@ def parse_yaml(text: str, source: str) -> dict[str, Any]:
             source,
             "start with 'name:', 'data:', 'model:' lines",
         )
+    for key in raw:
+        if not isinstance(key, str):
+            raise SpecError(
+                f"the key {key!r} is not a name (YAML reads yes/no/on/off as booleans, null as nothing and digits as "
+                "numbers)",
+                source,
+                "write a spec key such as name:, data:, model: (quote a key that must stay text)",
+            )
     return raw
 
 

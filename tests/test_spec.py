@@ -120,6 +120,9 @@ def test_relaxation_and_explicit_weights_are_checked():
         ("name: x\nname: y\n", "duplicate key 'name'"),
         ("", "the spec is empty"),
         ("- a\n- b\n", "must be a mapping"),
+        ("yes: 1\n", "the key True is not a name"),
+        ("1: 2\n", "the key 1 is not a name"),
+        ("? [a, b]\n: 1\n", "a list is used as a key"),
     ],
 )
 def test_yaml_problems(text, expected):
@@ -152,3 +155,20 @@ def test_a_spec_without_cost_takes_its_familys_default_cost():
     assert validate_spec({"data": data, "model": {"family": "narx"}, "cost": "mse1"}).cost == "mse1"
     resolved = narx_spec_.resolved()
     assert resolved["cost"] == "mse_inf" and validate_spec(resolved).resolved() == resolved
+
+
+def test_yaml_merge_keys_and_named_delimiters():
+    """A shared block merged with <<: *anchor (its keys may be overridden, as YAML allows), and a delimiter
+    written '\\t' in single quotes or by name."""
+    raw = parse_yaml(
+        "defaults: &d {input: [u], output: [y]}\ndata:\n  <<: *d\n  path: a.csv\n  output: [z]\n", "spec.yaml"
+    )
+    assert raw["data"] == {"input": ["u"], "output": ["z"], "path": "a.csv"}
+    for written in ("'\\t'", "tab", "'\t'"):
+        text = f"data: {{path: a.csv, input: [u], output: [y], delimiter: {written}}}\nmodel: {{family: narx}}\n"
+        spec = validate_spec(parse_yaml(text, "s"))
+        assert spec.data.delimiter == "\t"
+    with pytest.raises(SpecError, match="is not one character"):
+        validate_spec(
+            {"data": {"path": "a.csv", "input": ["u"], "output": ["y"], "delimiter": ",,"}, "model": {"family": "narx"}}
+        )
