@@ -55,8 +55,9 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     help="Black-box models of driven dynamical systems from measured input/output data.",
 )
-out = Console(soft_wrap=True, highlight=False)
-err = Console(stderr=True, soft_wrap=True, highlight=False)
+# no emoji codes: a named test set prints as 'test:b:rec_b.csv', which rich would turn into a picture
+out = Console(soft_wrap=True, highlight=False, emoji=False)
+err = Console(stderr=True, soft_wrap=True, highlight=False, emoji=False)
 _state = {"debug": False, "json_stdout": False}
 #: the metavar of a flag: none (typer would show "<bool>", as if it took a value)
 FLAG = " "
@@ -220,16 +221,17 @@ def fit(
     s, model, ds = result.spec, result.model, result.dataset
     recs = ", ".join(ds.source_names())
     out.print(
-        f"[bold]{s.name}[/]: {result.family_label} fitted with cost {result.cost} on {recs} in {result.seconds:.1f} s"
+        f"[bold]{escape(s.name)}[/]: {result.family_label} fitted with cost {result.cost} on {escape(recs)} in "
+        f"{result.seconds:.1f} s"
     )
     if model.search is not None:
         _print_search(model.search)
     out.print(metrics_table(model.metrics))
     for note in result.data_notes():
         out.print(f"note: {note}", markup=False, soft_wrap=True)
-    out.print(f"model written to {result.path}")
+    out.print(f"model written to {result.path}", markup=False)
     if result.plot_path is not None:
-        out.print(f"plot written to {result.plot_path}")
+        out.print(f"plot written to {result.plot_path}", markup=False)
     problem = result.problem()
     if problem is not None:
         raise problem
@@ -280,8 +282,11 @@ def validate(
     result = validate_spec_file(spec)
     s, ds, plan = result.spec, result.dataset, result.plan
     out.print(
-        f"[green]ok[/]: {spec} ({s.model.family}, cost {s.cost or 'per family'}, {ds.n_loaded} recording(s), "
-        f"inputs {ds.input_names}, outputs {ds.output_names}, sampling time {ds.sampling_time:g})"
+        "[green]ok[/]: "
+        + escape(
+            f"{spec} ({s.model.family}, cost {s.cost or 'per family'}, {ds.n_loaded} recording(s), "
+            f"inputs {ds.input_names}, outputs {ds.output_names}, sampling time {ds.sampling_time:g})"
+        )
     )
     table = Table()
     for col in ("split", "samples", "scored", "segments"):
@@ -354,7 +359,9 @@ def inspect(
 
     result = inspect_model(model_path, json_path, force)
     model, summary = result.model, result.summary
-    out.print(f"[bold]{model_path}[/]  family [bold]{model.family.name}[/]  ({model.spec.get('name')})")
+    out.print(
+        f"[bold]{escape(str(model_path))}[/]  family [bold]{model.family.name}[/]  ({escape(str(model.spec.get('name')))})"
+    )
     facts = Table(show_header=False, box=None)
     facts.add_column(style="dim")
     facts.add_column()
@@ -479,11 +486,11 @@ def diagnose_cmd(
     _print_diagnosis(result)
     for note in result.notes:
         out.print(f"note: {note}", markup=False, soft_wrap=True)
-    out.print(f"report written to {done.index}")
+    out.print(f"report written to {done.index}", markup=False)
     if done.extended is not None:
-        out.print(f"extended spec written to {done.extended} (run it with: dynmodel fit {done.extended})")
+        out.print(f"extended spec written to {done.extended} (run it with: dynmodel fit {done.extended})", markup=False)
     if done.json_path is not None and not _state.get("json_stdout"):
-        out.print(f"summary written to {done.json_path}")
+        out.print(f"summary written to {done.json_path}", markup=False)
 
 
 def _print_diagnosis(result) -> None:
@@ -631,7 +638,7 @@ def control(
     for note in report.notes:
         out.print(f"note: {escape(note)}")
     if plot:
-        out.print(f"plot written to {plot}")
+        out.print(f"plot written to {plot}", markup=False)
 
 
 # ------------------------------------------------------------------------------ plugins / schema

@@ -31,7 +31,7 @@ class Reporter:
         if self.tty:
             from rich.console import Console
 
-            self._console = Console(file=self.stream)
+            self._console = Console(file=self.stream, emoji=False)
 
     def __call__(self, stage: str, fraction: float | None, message: str) -> None:
         if not self.enabled:
