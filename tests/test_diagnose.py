@@ -321,3 +321,33 @@ def test_default_narx_that_loses_track_on_gms_friction_is_repaired_by_free_run_s
     assert any((p.get("model") or {}).get("params", {}).get("selection") == "free_run" for p in proposed)
     assert result.rounds[0].accepted and result.final.nmse("test") < 20.0
     assert any("extrapolates" in n for n in result.notes)  # the test position leaves the training range
+
+
+def test_the_gain_compares_models_of_different_tune_ins_on_the_same_samples(tmp_path):
+    """A degree-1 NARX with one lag, extended to more lags, on a separate test file without a transient: the
+    two free runs are scored from different samples (their tune-ins differ), and the paired gain used to end in
+    an internal error (shapes (1999,) and (1997,))."""
+    from conftest import narx as narx_data
+    from conftest import write_csv
+
+    u, y = narx_data(3000, 1)
+    ut, yt = narx_data(2000, 2)
+    write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    write_csv(tmp_path / "test.csv", {"u": ut, "y": yt})
+    raw = {
+        "name": "gain",
+        "data": {
+            "path": "train.csv",
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 0.7, "validation": 0.3},
+            "test": {"path": "test.csv"},
+        },
+        "model": {"family": "narx", "params": {"degree": 1}},
+        "cost": "mse1",
+    }
+    result = diagnose(raw, "gain.yaml", tmp_path, Settings(rounds=1))
+    assert result.baseline.model.warmup != result.final.model.warmup  # the case: different tune-ins
+    gain = result.gain
+    assert gain["test_nmse_after"] is not None and gain["test_nmse_after"] < gain["test_nmse_before"]
+    assert "uncertainty" in gain and gain["uncertainty"].get("method") != "none: a free run diverged on the test split"

@@ -41,9 +41,11 @@ class Fit:
             return float("nan")
         return float("inf") if m.get("nmse") is None else float(m["nmse"])
 
-    def residual(self, split: str) -> tuple[np.ndarray, np.ndarray]:
-        """(measured, free run) on the scored samples of a split, concatenated (NaN after a divergence)."""
-        rows = self.ds.scored(split, warmup=self.model.warmup)
+    def residual(self, split: str, warmup: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(measured, free run) on the scored samples of a split, concatenated (NaN after a divergence);
+        ``warmup``: the samples left out at recording starts (default the model's own tune-in; a comparison
+        of two models passes the larger of their two, so that both are scored on the same samples)."""
+        rows = self.ds.scored(split, warmup=self.model.warmup if warmup is None else warmup)
         if not rows:
             return np.empty((0, len(self.model.output_names))), np.empty((0, len(self.model.output_names)))
         y = np.concatenate([self.ds.recordings[r].y[a:b] for r, a, b in rows])

@@ -56,8 +56,9 @@ def measure_gain(fitter: Fitter, base: Fit, final: Fit, settings) -> dict[str, A
         return gain
     stochastic = bool(base.model.family.stochastic or final.model.family.stochastic)
     if not stochastic:
-        y, y1 = base.residual("test")
-        _, y2 = final.residual("test")
+        common = max(base.model.warmup, final.model.warmup)  # both scored on the same samples
+        y, y1 = base.residual("test", common)
+        _, y2 = final.residual("test", common)
         if not (np.isfinite(y1).all() and np.isfinite(y2).all()):
             gain["uncertainty"] = {"method": "none: a free run diverged on the test split"}
             return gain

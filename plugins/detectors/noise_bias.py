@@ -58,8 +58,9 @@ class NoiseBias(Detector):
                 f"the free-running refit failed: {exc.what}",
                 {"statistic": "free-running refit", "error": exc.line()},
             )
-        y, y1 = ctx.fit.residual(split)
-        _, y2 = other.residual(split)
+        common = max(ctx.fit.model.warmup, other.model.warmup)  # both scored on the same samples
+        y, y1 = ctx.fit.residual(split, common)
+        _, y2 = other.residual(split, common)
         var = np.maximum(np.var(y, axis=0), np.finfo(float).tiny)
         if not (np.isfinite(y1).all() and np.isfinite(y2).all()):
             diverged = {"statistic": "free-running refit", "note": "a free run diverged on the comparison split"}

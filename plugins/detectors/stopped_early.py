@@ -48,8 +48,10 @@ class StructureStoppedEarly(Detector):
             except DynmodelError as exc:
                 tried.append({"extension": ext.summary, "error": exc.line()})
                 continue
-            _, y1 = other.residual(split)
-            if not np.isfinite(y1).all():
+            common = max(ctx.fit.model.warmup, other.model.warmup)  # both scored on the same samples
+            y, y0 = ctx.fit.residual(split, common)
+            _, y1 = other.residual(split, common)
+            if not np.isfinite(y1).all() or not np.isfinite(y0).all():
                 tried.append({"extension": ext.summary, "nmse": None, "diverged": True})
                 continue
             e0 = (((y - y0) ** 2) / var).sum(axis=1)
