@@ -265,6 +265,24 @@ def test_an_output_folder_holding_another_sweep_is_left_alone(tmp_path, spec_fil
     assert _snapshot(out) == before and (tmp_path / "other" / "notes.txt").read_text() == "mine"
 
 
+def test_the_data_a_sweep_reads_never_takes_its_json(tmp_path):
+    """--json onto the spec's data file is refused even with --force (it replaced the training data)."""
+    from conftest import narx as narx_data
+    from conftest import write_csv
+
+    u, y = narx_data(600, 1)
+    data = write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    raw = tiny()
+    raw["data"] = {"path": "train.csv", "input": ["u"], "output": ["y"], "split": {"train": 0.7, "validation": 0.3}}
+    spec = write_yaml(tmp_path / "spec.yaml", raw)
+    write_yaml(tmp_path / "g.yaml", {"model.params.size": [10]})
+    before = data.read_bytes()
+    line = one_line_error(
+        run_cli("sweep", spec, "--grid", tmp_path / "g.yaml", "--workers", 1, "--json", data, "--force", "-q")
+    )
+    assert "this is the data file the command reads" in line and data.read_bytes() == before
+
+
 # ------------------------------------------------------------------------------ results and faults
 
 

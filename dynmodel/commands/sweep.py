@@ -30,7 +30,16 @@ def run_sweep(
     from ..sweeps import run as sweeps
 
     folder = Path(out) if out is not None else sweeps.default_out(spec)
-    check_outputs([(json_path, "json", "--json")], {"spec": [spec], "grid": [grid]}, force)
+    from ..errors import DynmodelError
+    from ..paths import spec_inputs
+    from ..spec import load_spec
+
+    inputs: dict[str, list[Path]] = {"spec": [Path(spec)], "grid": [Path(grid)]}
+    try:  # the data files the spec reads are inputs too (the sweep checks the spec itself below)
+        inputs.update({k: v for k, v in spec_inputs(load_spec(spec)).items() if k != "spec"})
+    except DynmodelError:
+        pass
+    check_outputs([(json_path, "json", "--json")], inputs, force)
     try:
         result = sweeps.sweep(
             spec,
