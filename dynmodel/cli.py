@@ -126,6 +126,8 @@ def handled(fn: Callable) -> Callable:
             except (typer.Exit, typer.Abort, SystemExit):
                 _show_warnings(caught)
                 raise
+            except BrokenPipeError:  # the reader of stdout stopped (| head): main() ends quietly
+                raise
             except BaseException as exc:  # noqa: BLE001 - the one place that explains failures
                 mapped = explain(exc)
                 if _state["debug"] and not isinstance(exc, KeyboardInterrupt):
