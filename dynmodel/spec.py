@@ -569,7 +569,11 @@ class Spec(StrictModel):
         return path if path.is_absolute() else (self._base_dir / path)
 
     def output_path(self) -> Path:
-        return self.resolve_path(self.output or f"{self.name}.h5")
+        """The spec's ``output``, else ``<name>.h5`` next to the spec, the name made safe for a file name (a
+        name with slashes or '..' must not write elsewhere)."""
+        from .paths import safe_name
+
+        return self.resolve_path(self.output or f"{safe_name(self.name)}.h5")
 
     def resolved(self) -> dict[str, Any]:
         """The full spec with defaults filled in and data paths made absolute."""

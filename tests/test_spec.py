@@ -172,3 +172,14 @@ def test_yaml_merge_keys_and_named_delimiters():
         validate_spec(
             {"data": {"path": "a.csv", "input": ["u"], "output": ["y"], "delimiter": ",,"}, "model": {"family": "narx"}}
         )
+
+
+def test_the_default_model_file_stays_next_to_the_spec():
+    for name, file in (
+        ("a/b/c", "a-b-c.h5"),
+        ("../escape", "escape.h5"),
+        ("", "model.h5"),
+        ("tanks-auto", "tanks-auto.h5"),
+    ):
+        spec = validate_spec({"name": name, "data": {"generator": "narx-system"}, "model": {"family": "narx"}})
+        assert spec.output_path().name == file and spec.output_path().parent == spec.resolve_path(".")
