@@ -100,6 +100,15 @@ def checked_family(spec: Spec, ds: Dataset) -> Family:
         raise ParameterError(str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params") from None
     check_warmup(ds, family.warmup, spec.source)
     protocol.check_warmup(family, ds, spec.source)  # before a long fit, where the parameters fix it
+    splits = {split for split, rows in ds.ranges.items() if rows}
+    try:
+        family.check_data(preprocessor(spec, ds).model_input_names, list(ds.output_names), splits)
+    except DynmodelError:
+        raise
+    except ValueError as exc:
+        raise ParameterError(
+            str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
+        ) from None
     return family
 
 

@@ -23,7 +23,7 @@ import inspect
 import textwrap
 import types
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, Union, get_args, get_origin
 
@@ -392,6 +392,14 @@ class Family(ABC):
         """The fitted model as a batched driven system x_t = f(x_{t-1}, v_t) in model space, for
         ``dynmodel reliability-check`` (see :mod:`dynmodel.reliability.system`); None when the
         family has no state to test."""
+        return None
+
+    def check_data(self, input_names: Sequence[str], output_names: Sequence[str], splits: Collection[str]) -> None:
+        """Refuse, with a ValueError (one line: what and how to fix), data this configuration cannot be fitted on,
+        before any fit: ``input_names`` are the model's inputs (delay copies and derived channels included),
+        ``splits`` the splits the data have (``validation`` when a validation split exists). Names in the
+        parameters that are no column, a validation split the configuration selects on. ``dynmodel validate``
+        and ``fit`` call it; the default checks nothing."""
         return None
 
     def summary(self) -> dict[str, Any]:

@@ -217,12 +217,13 @@ def validate_spec_file(spec: str | Path) -> ValidateResult:
     """``dynmodel validate``: the spec's keys, files, columns, values, split sizes and the output path that
     ``fit`` would refuse, checked without fitting (one-line errors)."""
     from ..data import describe, load_dataset
-    from ..engine import check_plan
+    from ..engine import check_plan, preprocessor
     from ..paths import check_outputs, spec_inputs
     from ..spec import load_spec
 
     s = load_spec(spec)
     check_outputs([(s.output_path(), "model", "output:")], spec_inputs(s, spec))  # what `fit` would refuse
     ds = load_dataset(s)
+    preprocessor(s, ds)  # derived inputs and delay lines, refused here as fit refuses them
     plan = check_plan(s, ds)
     return ValidateResult(s, ds, plan, describe(ds))

@@ -141,9 +141,10 @@ def channel_name(item: dict[str, Any]) -> str:
     return f"{item[k]}_{k}"
 
 
-def check(items: Sequence[dict[str, Any]], input_names: Sequence[str]) -> None:
-    """ValueError naming the first item that refers to an unknown input or repeats a name."""
-    seen = set(input_names)
+def check(items: Sequence[dict[str, Any]], input_names: Sequence[str], output_names: Sequence[str] = ()) -> None:
+    """ValueError naming the first item that refers to an unknown input or repeats a name (an input's, an
+    output's or another derived channel's: a model term would not tell them apart)."""
+    seen = set(input_names) | set(output_names)
     for i, item in enumerate(items):
         k = kind(item)
         if k != "time" and item[k] not in input_names:

@@ -89,7 +89,7 @@ class Preprocessor:
         Raises ValueError when a derived input names an unknown input column."""
         n_in, n_out = len(ds.input_names), len(ds.output_names)
         items = [{k: v for k, v in dict(item).items() if v is not None} for item in (derived or [])]
-        derived_mod.check(items, ds.input_names)
+        derived_mod.check(items, ds.input_names, ds.output_names)
         pre = cls(
             list(ds.input_names),
             list(ds.output_names),

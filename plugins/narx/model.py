@@ -754,6 +754,20 @@ class Narx(Family):
             self.ridge_ = dict(attrs["ridge"])
         return self
 
+    def check_data(self, input_names, output_names, splits) -> None:
+        """Before a fit: the columns ``lags`` names exist, and the term selection has a stopping rule (a
+        validation split with ``patience``, ``max_terms`` or ``threshold``; explicit ``terms`` need none)."""
+        p = self.params
+        if p.lags is not None:  # unknown names and output lag 0 raise here as in fit
+            build_embedding(p.lag_table(), list(input_names), list(output_names), (), p.max_degree, p.constant)
+        selects = p.terms is None
+        validated = "validation" in splits and p.patience is not None
+        if selects and not validated and p.max_terms is None and p.threshold is None:
+            raise ValueError(
+                "FOS needs a stopping rule: a validation split (data.split.validation, used with patience), "
+                "max_terms or threshold"
+            )
+
     def driven_system(self):
         """The free run as a driven system whose state is the past outputs (``plugins/narx/reliability.py``),
         for ``dynmodel reliability-check``: does the model forget the outputs it started from?"""
