@@ -243,3 +243,24 @@ def test_inputs_beyond_the_training_range_are_named_with_split_sample_and_excess
     assert "leaves the training range by 25 %" in ds.excursion_notes()[0]
     u[900] = 0.5
     assert ds.input_excursions() == []
+
+
+def test_a_header_written_as_a_comment_by_numpy_savetxt_is_read(tmp_path):
+    """numpy.savetxt(header='t,u,y') writes '# t,u,y' above the numbers: the names are taken from it."""
+    data = np.column_stack([np.arange(5.0), np.linspace(0, 1, 5), np.linspace(1, 2, 5)])
+    np.savetxt(tmp_path / "a.csv", data, delimiter=",", header="t,u,y")
+    np.savetxt(tmp_path / "b.txt", data, header="t u y")
+    for name in ("a.csv", "b.txt"):
+        with pytest.warns(UserWarning, match="column names are read from the comment line"):
+            cols = read_columns(tmp_path / name, ["u", "y"])
+        np.testing.assert_array_equal(cols["y"], data[:, 2])
+
+
+def test_decimal_commas_under_unnamed_header_columns_are_refused(tmp_path):
+    """'t,position,force,,,' over rows '0,004,1,5,2,25': decimal commas split every number in two; the values
+    land under the unnamed columns, and reading the named ones would take the fractions for numbers."""
+    (tmp_path / "d.csv").write_text("t,position,force,,,\n0,000,1,5,2,25\n0,004,1,6,2,75\n")
+    with pytest.raises(DataError, match="rows hold values under the unnamed ones.*decimal commas"):
+        read_columns(tmp_path / "d.csv", ["position"])
+    (tmp_path / "e.csv").write_text("t,position,force,,\n0,1.5,2.5,,\n1,1.6,2.75,,\n")  # empty trailing columns
+    assert read_columns(tmp_path / "e.csv", ["force"])["force"].tolist() == [2.5, 2.75]

@@ -85,6 +85,40 @@ def _sniff_delimiter(first_lines: list[str]) -> str | None:
         return None if not any("," in ln for ln in first_lines) else ","
 
 
+def _commented_header(raw_lines: list[str], lines: list[str], delim: str | None, path: Path) -> list[str] | None:
+    """``lines`` with a header taken from the comment line right above the first data line, when that data line
+    is all numbers and the comment has as many fields (``numpy.savetxt(header=...)`` writes '# t,u,y'), with a
+    note; None otherwise."""
+    first = lines[0]
+    k = raw_lines.index(first)
+    if k == 0 or not raw_lines[k - 1].lstrip().startswith("#"):
+        return None
+
+    def cells(line: str) -> list[str]:
+        return line.split() if delim in (None, " ") else next(csv.reader([line], delimiter=delim or ","))
+
+    values = [c.strip() for c in cells(first)]
+    names = [c.strip() for c in cells(raw_lines[k - 1].lstrip()[1:].strip())]
+    try:
+        [float(v) for v in values]
+    except ValueError:
+        return None  # the first line is a header of its own
+    if len(names) != len(values) or not all(names) or any(_is_number(n) for n in names):
+        return None
+    warnings.warn(
+        DataNote(f"{path}: the column names are read from the comment line '# {', '.join(names)}'"), stacklevel=3
+    )
+    return [raw_lines[k - 1].lstrip()[1:].strip(), *lines]
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def read_text(
     path: Path,
     selectors: Sequence[str | int],
@@ -97,11 +131,13 @@ def read_text(
     instead of an error, for columns that need not be complete, such as measured outputs beside the inputs
     of a prediction)."""
     text, _ = decode_text(_read_bytes(path), str(path))
-    lines = text.lstrip("\ufeff").splitlines()
-    lines = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
+    raw_lines = text.lstrip("\ufeff").splitlines()
+    lines = [ln for ln in raw_lines if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise DataError("the file is empty", str(path), "point data.path to a file with samples")
     delim = delimiter or _sniff_delimiter(lines[:20])
+    if header:
+        lines = _commented_header(raw_lines, lines, delim, path) or lines
     whitespace = delim in (None, " ")
     decimal_comma = False
 
@@ -113,6 +149,17 @@ def read_text(
     if header:
         names = [h.strip() for h in split(lines[0])]
         body = lines[1:]
+        unnamed = [i for i, n in enumerate(names) if not n]
+        if unnamed and delim == "," and body:
+            first = split(body[0])
+            if any(i < len(first) and first[i].strip() for i in unnamed):  # values under no name
+                raise DataError(
+                    f"the header names {len(names) - len(unnamed)} columns and leaves {len(unnamed)} unnamed, but "
+                    "the rows hold values under the unnamed ones",
+                    str(path),
+                    "the file seems to use decimal commas with comma separators: export it with ';' as separator "
+                    "or with decimal points",
+                )
     else:
         width = len(split(lines[0]))
         names = list(columns) if columns else [str(i) for i in range(width)]
