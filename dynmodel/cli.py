@@ -493,6 +493,9 @@ def diagnose_cmd(
         out.print(f"extended spec written to {done.extended} (run it with: dynmodel fit {done.extended})", markup=False)
     if done.json_path is not None and not _state.get("json_stdout"):
         out.print(f"summary written to {done.json_path}", markup=False)
+    line = result.extended_warning()
+    if line:
+        err.print(f"warning: {line}", markup=False, soft_wrap=True)
 
 
 def _print_diagnosis(result) -> None:

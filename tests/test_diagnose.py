@@ -80,7 +80,8 @@ def test_a_hidden_cause_is_named_first_with_its_evidence_and_gain(cause, seed, t
     case = HIDDEN[cause](seed)
     result = diagnose(case.spec(tmp_path), "<test>", tmp_path, Settings(seeds=2))
     summary = result.to_json()
-    assert set(summary) == {"baseline", "findings", "extended", "gain"}
+    assert set(summary) == {"baseline", "findings", "extended", "gain", "warning"}
+    assert summary["warning"] is None  # the extension carries over to the test
     findings = summary["findings"]
     assert findings and findings[0]["cause"] == cause, [(f["cause"], f["score"]) for f in findings]
     assert all(f["significant"] for f in findings)
@@ -195,7 +196,7 @@ def test_cli_writes_report_json_and_a_runnable_extended_spec(cli, tmp_path, dela
     assert r.exit_code == 0, r.stderr
     assert "named cause: missing-delay" in r.stdout and "test NMSE" in r.stdout
     summary = json.loads((tmp_path / "d.json").read_text())
-    assert list(summary) == ["baseline", "findings", "extended", "gain"]
+    assert list(summary) == ["baseline", "findings", "extended", "gain", "warning"]
     assert summary["findings"][0]["cause"] == "missing-delay"
     assert set(summary["gain"]) >= {
         "test_nmse_before",
@@ -351,3 +352,35 @@ def test_the_gain_compares_models_of_different_tune_ins_on_the_same_samples(tmp_
     gain = result.gain
     assert gain["test_nmse_after"] is not None and gain["test_nmse_after"] < gain["test_nmse_before"]
     assert "uncertainty" in gain and gain["uncertainty"].get("method") != "none: a free run diverged on the test split"
+
+
+def test_named_test_sets_get_a_gain_and_a_worse_extension_is_said(tmp_path):
+    """Named test sets (test:a, test:b): the gain is measured on them (the note said the spec had no test
+    split); an extension worse on the test than the baseline is said in one line, in --json and the report."""
+    from conftest import narx as narx_data
+    from conftest import write_csv
+
+    for name, seed, n in (("train", 1, 3000), ("a", 2, 1000), ("b", 3, 1000)):
+        u, y = narx_data(n, seed)
+        write_csv(tmp_path / f"{name}.csv", {"u": u, "y": y})
+    raw = {
+        "name": "named",
+        "data": {
+            "path": "train.csv",
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 0.7, "validation": 0.3},
+            "test": [{"name": "a", "path": "a.csv"}, {"name": "b", "path": "b.csv"}],
+            "transient": 20,
+        },
+        "model": {"family": "narx", "params": {"degree": 1}},
+        "cost": "mse1",
+    }
+    result = diagnose(raw, "named.yaml", tmp_path, Settings(rounds=1))
+    gain = result.gain
+    assert gain["test_split"] == "test:a" and "note" not in gain
+    assert gain["test_nmse_after"] < gain["test_nmse_before"] and set(gain["per_test"]) == {"test:a", "test:b"}
+    assert all(g["relative_reduction"] > 0 for g in gain["per_test"].values())
+    assert result.extended_warning() is None and result.to_json()["warning"] is None
+    gain["test_nmse_after"] = 10 * gain["test_nmse_before"]  # as if the extension did not carry over
+    assert result.extended_warning().startswith("the extended model validates better but is worse on the test:a")

@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from .gain import test_key
 from .runner import Diagnosis, Round, fitted_family
 
 
@@ -127,8 +128,8 @@ def print_diagnosis(result: Diagnosis, out: Console, metrics_table) -> None:
 
         rmse = ""
         tb, ta = (
-            (base.metrics.get("test") or {}).get("rmse"),
-            ((result.final.metrics if result.final else {}).get("test") or {}).get("rmse"),
+            (base.metrics.get(test_key(base.metrics) or "test") or {}).get("rmse"),
+            ((result.final.metrics if result.final else {}).get(test_key(base.metrics) or "test") or {}).get("rmse"),
         )
         if tb and ta:
             rmse = f"; test RMSE {_fmt(tb)} -> {_fmt(ta)} ({tb / ta:.3g} x lower)"

@@ -261,7 +261,7 @@ def before_after(path: Path, base: Fit, final: Fit, gain: dict[str, Any]) -> Non
     """The test split's worst window of the baseline with the extended model, and the test NMSE bars."""
     plt = _pyplot()
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 3.8), gridspec_kw={"width_ratios": [3, 1]})
-    rows = base.ds.scored("test", warmup=max(base.model.warmup, final.model.warmup))
+    rows = base.ds.scored(gain.get("test_split") or "test", warmup=max(base.model.warmup, final.model.warmup))
     st = base.ds.sampling_time
     if rows:
         rec, a, b = max(rows, key=lambda r: r[2] - r[1])

@@ -17,8 +17,15 @@ from .bootstrap import paired_nmse
 from .fitting import Fit, Fitter
 
 
-def _test_metric(fit: Fit, metric: str) -> float | None:
-    m = fit.metrics.get("test") or {}
+def test_key(metrics: dict[str, Any]) -> str | None:
+    """The test split the gain is measured on: ``test``, else the first named test set (``test:<name>``)."""
+    if "test" in metrics:
+        return "test"
+    return next((k for k in metrics if k.startswith("test:")), None)
+
+
+def _test_metric(fit: Fit, metric: str, key: str | None = "test") -> float | None:
+    m = fit.metrics.get(key or "test") or {}
     return None if m.get(metric) is None else float(m[metric])
 
 
@@ -41,24 +48,36 @@ def _summary(values: list[float]) -> dict[str, Any]:
 
 def measure_gain(fitter: Fitter, base: Fit, final: Fit, settings) -> dict[str, Any]:
     """Test NMSE and MAX before and after, the relative reduction, and its uncertainty."""
-    before, after = _test_metric(base, "nmse"), _test_metric(final, "nmse")
+    key = test_key(base.metrics)
+    before, after = _test_metric(base, "nmse", key), _test_metric(final, "nmse", key)
     gain: dict[str, Any] = {
+        "test_split": key,
         "test_nmse_before": before,
         "test_nmse_after": after,
         "relative_reduction": _reduction(before, after),
-        "test_max_before": _test_metric(base, "max"),
-        "test_max_after": _test_metric(final, "max"),
-        "baseline_diverged_on_test": bool((base.metrics.get("test") or {}).get("unstable_from")),
-        "extended_diverged_on_test": bool((final.metrics.get("test") or {}).get("unstable_from")),
+        "test_max_before": _test_metric(base, "max", key),
+        "test_max_after": _test_metric(final, "max", key),
+        "baseline_diverged_on_test": bool((base.metrics.get(key or "test") or {}).get("unstable_from")),
+        "extended_diverged_on_test": bool((final.metrics.get(key or "test") or {}).get("unstable_from")),
     }
-    if "test" not in base.metrics:
+    named = [k for k in base.metrics if k.startswith("test:")]
+    if len(named) > 1 or (named and key == "test"):  # every named test set, the first one above
+        gain["per_test"] = {
+            k: {
+                "test_nmse_before": _test_metric(base, "nmse", k),
+                "test_nmse_after": _test_metric(final, "nmse", k),
+                "relative_reduction": _reduction(_test_metric(base, "nmse", k), _test_metric(final, "nmse", k)),
+            }
+            for k in ([key] if key == "test" else []) + named
+        }
+    if key is None:
         gain["note"] = "the spec has no test split; give data.split.test or data.test to measure the gain"
         return gain
     stochastic = bool(base.model.family.stochastic or final.model.family.stochastic)
     if not stochastic:
         common = max(base.model.warmup, final.model.warmup)  # both scored on the same samples
-        y, y1 = base.residual("test", common)
-        _, y2 = final.residual("test", common)
+        y, y1 = base.residual(key, common)
+        _, y2 = final.residual(key, common)
         if not (np.isfinite(y1).all() and np.isfinite(y2).all()):
             gain["uncertainty"] = {"method": "none: a free run diverged on the test split"}
             return gain
@@ -77,7 +96,7 @@ def measure_gain(fitter: Fitter, base: Fit, final: Fit, settings) -> dict[str, A
             fa = final if s == final.spec.seed else fitter.fit(final.raw, seed=s, label=f"extended, seed {s}")
         except DynmodelError:
             continue
-        b, a = _test_metric(fb, "nmse"), _test_metric(fa, "nmse")
+        b, a = _test_metric(fb, "nmse", key), _test_metric(fa, "nmse", key)
         nb.append(np.inf if b is None else b)
         na.append(np.inf if a is None else a)
         r = _reduction(b, a)

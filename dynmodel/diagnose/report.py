@@ -12,6 +12,7 @@ import yaml
 
 from . import figures
 from .context import segments_of
+from .gain import test_key
 from .runner import Diagnosis, fitted_family
 
 REPORT = "index.md"
@@ -192,6 +193,7 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
         f"{base.model.input_names}, output {base.model.output_names}, sampling time {base.ds.sampling_time:g} s; "
         f"model memory {memory if memory is not None else '–'} samples. Diagnosis took {result.seconds:.1f} s.",
         "",
+        *([f"**Warning:** {result.extended_warning()}", ""] if result.extended_warning() else []),
         "## Baseline",
         "",
         "| split | samples | NMSE % | MAX | NMSE one-step % |",
@@ -287,7 +289,7 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
                 if c.fit is None:
                     lines.append(f"| {c.extension.summary}{mark} | failed: {c.error} | – | – |")
                 else:
-                    scores = c.fit.metrics.get("test") or {}
+                    scores = c.fit.metrics.get(test_key(c.fit.metrics) or "test") or {}
                     lines.append(
                         f"| {c.extension.summary}{mark} | {_fmt(c.score(split))} | "
                         f"{_fmt(scores.get('nmse')) if scores.get('nmse') is not None else 'diverged'} | "

@@ -146,6 +146,25 @@ class Diagnosis:
     def baseline(self) -> Fit:
         return self.rounds[0].fit
 
+    def extended_warning(self) -> str | None:
+        """One line when the extended model it hands over is worse on the test than the baseline, or of little use
+        there (what ``dynmodel fit`` of extended.yaml would say): its validation did not represent the test."""
+        final = self.final
+        if final is None or self.gain is None:
+            return None
+        from ..usefulness import assess, summary_line
+
+        before, after = self.gain.get("test_nmse_before"), self.gain.get("test_nmse_after")
+        worse = before is not None and after is not None and after > before
+        line = summary_line(assess(final.model, final.ds, final.runs), "extended.yaml", final.spec.cost)
+        if not worse:
+            return None if line is None else f"the extended model: {line}"
+        text = (
+            f"the extended model validates better but is worse on the {self.gain.get('test_split') or 'test'} split "
+            f"({before:.4g} % -> {after:.4g} % NMSE): its validation did not represent the test"
+        )
+        return f"{text}; {line}" if line else f"{text}. Fix: keep the baseline, or validate on data like the test's"
+
     @property
     def findings(self) -> list[Finding]:
         """The baseline's significant findings, the named cause first."""
@@ -207,6 +226,7 @@ class Diagnosis:
             "findings": [f.to_json() for f in self.findings],
             "extended": extended,
             "gain": self._gain_json(),
+            "warning": self.extended_warning(),
         }
 
     def _gain_json(self) -> dict[str, Any]:
@@ -224,7 +244,9 @@ class Diagnosis:
 
 
 def _test(fit: Fit, metric: str) -> float | None:
-    m = fit.metrics.get("test") or {}
+    from .gain import test_key
+
+    m = fit.metrics.get(test_key(fit.metrics) or "test") or {}
     return m.get(metric)
 
 
