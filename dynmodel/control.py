@@ -221,6 +221,12 @@ def make_plant(
     return gen.control_plant(validated), validated.model_dump(mode="json")
 
 
+def _where(model) -> str:
+    """The model file, for messages (the path fit wrote it to), else 'the model'."""
+    spec = getattr(model, "spec", None) or {}
+    return str(spec.get("output") or "the model")
+
+
 def _feedforward_layout(model, plant: Plant) -> tuple[int, list[str]]:
     """The model output that is the feed-forward force, and notes; every model input gets the reference."""
     notes = []
@@ -229,7 +235,7 @@ def _feedforward_layout(model, plant: Plant) -> tuple[int, list[str]]:
         raise DataError(
             f"the model's input '{bad[0]}' is not a position signal of the plant (it offers "
             f"{', '.join(plant.reference_inputs)})",
-            "MODEL",
+            _where(model),
             "fit a model whose inputs are position signals, e.g. data.input: [position]",
         )
     outs = list(model.output_names)
@@ -244,7 +250,7 @@ def _feedforward_layout(model, plant: Plant) -> tuple[int, list[str]]:
     else:
         raise DataError(
             f"the model has outputs {outs} and none is the plant's force '{plant.force_output}'",
-            "MODEL",
+            _where(model),
             f"fit a model of the output '{plant.force_output}'",
         )
     return k, notes
@@ -257,7 +263,7 @@ def run(model, plant: Plant, settings: Settings, progress: Progress = no_progres
         raise DataError(
             f"the model was fitted at a sampling time of {model.sampling_time:g} s and the plant "
             f"samples every {st:g} s",
-            "MODEL",
+            _where(model),
             "fit the model on data sampled like the plant",
         )
     n = int(round(settings.duration / st))
@@ -299,7 +305,7 @@ def run(model, plant: Plant, settings: Settings, progress: Progress = no_progres
             k = res.diverged_at
             raise FreeRunDiverged(
                 f"the model's free run on the reference diverged at sample {k} (t = {k * st:.6g} s)",
-                "MODEL",
+                _where(model),
                 "use a model that stays stable on this reference (e.g. the internal mode)",
                 sample=k,
             )
