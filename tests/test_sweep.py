@@ -196,6 +196,10 @@ def test_grid_points_values_and_seeds(tmp_path):
         ({"data.delay_lines": [80, 160]}, ["list of lists", "data.delay_lines: [[80]]"]),
         ({"zip": {"model.params.size": [1, 2], "seed": [1]}}, ["differ in length"]),
         ({"seed": {"range": ["a"]}}, ["malformed range"]),
+        (
+            {"model.params.size": [30], "model.params": [{"size": 40}]},
+            ["'model.params' and 'model.params.size' overlap"],
+        ),
     ],
 )
 def test_a_bad_grid_fails_in_one_line_before_anything_runs(tmp_path, spec_file, grid, expected):

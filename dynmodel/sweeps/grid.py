@@ -142,6 +142,16 @@ def parse_grid(raw: Any, source: str = "<grid>") -> Grid:
     def claim(key: str) -> None:
         if key in seen:
             raise SpecError(f"'{key}' is swept twice", f"{source}: {key}", "keep it in one place (plain or zip)")
+        # a key inside another swept key (model.params.size and model.params): one would override the other,
+        # and the results table would show a value the point never used
+        nested = next((k for k in seen if key.startswith(k + ".") or k.startswith(key + ".")), None)
+        if nested is not None:
+            raise SpecError(
+                f"'{key}' and '{nested}' overlap: one holds the other, so a point would not use the value its "
+                "row shows",
+                f"{source}: {key}",
+                "sweep the inner key alone, or the outer one alone",
+            )
         seen.add(key)
 
     for key, value in raw.items():
