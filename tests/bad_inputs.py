@@ -991,6 +991,11 @@ def cases() -> list[Case]:
             expect="--force",
         ),
         C("generate-out-is-a-model", ["generate", "narx-system", "--n", "100", "--out", "m.h5"], expect="--force"),
+        C(
+            "generate-parameters-that-overflow",
+            ["generate", "lugre", "--n", "100", "-p", "sigma0=1e400", "--out", "l.csv"],
+            expect="holds NaN or inf from sample",
+        ),
         C("generate-out-in-proc", ["generate", "narx-system", "--n", "100", "--out", "/proc/g.csv"], expect="/proc"),
         C("generate-out-is-a-folder", ["generate", "narx-system", "--n", "100", "--out", "."], expect="is a folder"),
         C(

@@ -44,7 +44,7 @@ def generate_recording(
     items) written to the CSV ``out`` (replaced only when it is a CSV, or with ``force``), and a figure of the
     signals and of every output against the first input to ``plot``."""
     from .. import registry
-    from ..errors import SpecError
+    from ..errors import DataError, SpecError
     from ..paths import check_outputs
     from ..spec import validation_summary
 
@@ -64,6 +64,14 @@ def generate_recording(
         ) from None
     u, y = gen.generate(validated, n, np.random.default_rng(seed))
     t = np.arange(n) * gen.sampling_time(validated)
+    bad = np.flatnonzero(~np.isfinite(np.column_stack([u, y])).all(axis=1))
+    if bad.size:  # written, no model could use it: say so instead
+        raise DataError(
+            f"the generated recording holds NaN or inf from sample {int(bad[0])} on (the parameters make the system "
+            "diverge or overflow)",
+            "--param",
+            f"use parameters in the range of the '{generator}' entry of `dynmodel schema` (finite, physical values)",
+        )
     out_file.parent.mkdir(parents=True, exist_ok=True)
     np.savetxt(out_file, np.column_stack([t, u, y]), delimiter=",", header=",".join(columns), comments="", fmt="%.12g")
     result = Recording(generator, out_file, columns, t, u, y, seed)
