@@ -1191,7 +1191,7 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
         lines.append(caution)
     if ctx.excursion > 0.05:
         lines.append(
-            f"the test inputs leave the training range by {100 * ctx.excursion:.0f} % of its width: simpler, "
+            f"the validation or test inputs leave the training range by up to {100 * ctx.excursion:.0f} % of its width: simpler, "
             "bounded candidates are preferred"
         )
     if ctx.positions:

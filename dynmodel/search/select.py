@@ -332,7 +332,9 @@ def choose(
         out.cautious.append(short_validation)
         pairable, group = fold_blocks > 1, fold_blocks
     if excursion > EXTRAPOLATION:
-        out.cautious.append(f"the test inputs leave the training range by {100 * excursion:.0f} % of its width")
+        out.cautious.append(
+            f"the validation or test inputs leave the training range by up to {100 * excursion:.0f} % of its width"
+        )
         pairable = False
     top = eligible[0]
     if reference is not None and math.isfinite(reference) and not best <= REFERENCE_MARGIN * reference:
