@@ -91,6 +91,10 @@ def test_text_cell_that_is_not_a_number(tmp_path):
     (tmp_path / "d.csv").write_text("u,y\n1,2\n3,abc\n")
     with pytest.raises(DataError, match="'abc' at line 3"):
         read_columns(tmp_path / "d.csv", ["u", "y"])
+    # the line of the file, whatever comment and blank lines come before it
+    (tmp_path / "e.csv").write_text("# rig 7\nu,y\n\n1,2\n# pause\n3,abc\n")
+    with pytest.raises(DataError, match="'abc' at line 6"):
+        read_columns(tmp_path / "e.csv", ["u", "y"])
 
 
 def test_fraction_and_range_splits_with_transient():

@@ -132,12 +132,16 @@ def read_text(
     of a prediction)."""
     text, _ = decode_text(_read_bytes(path), str(path))
     raw_lines = text.lstrip("\ufeff").splitlines()
-    lines = [ln for ln in raw_lines if ln.strip() and not ln.lstrip().startswith("#")]
+    kept = [(i + 1, ln) for i, ln in enumerate(raw_lines) if ln.strip() and not ln.lstrip().startswith("#")]
+    lines = [ln for _, ln in kept]
+    numbers = [i for i, _ in kept]  # each kept line's number in the file (messages name the file's lines)
     if not lines:
         raise DataError("the file is empty", str(path), "point data.path to a file with samples")
     delim = delimiter or _sniff_delimiter(lines[:20])
     if header:
-        lines = _commented_header(raw_lines, lines, delim, path) or lines
+        with_names = _commented_header(raw_lines, lines, delim, path)
+        if with_names is not None:
+            lines, numbers = with_names, [numbers[0] - 1, *numbers]
     whitespace = delim in (None, " ")
     decimal_comma = False
 
@@ -190,14 +194,14 @@ def read_text(
                 continue
             raise _missing(path, key, [n for n in names if n])
         wanted.append((key, index[key]))
-    first_data_line = 2 if header else 1
+    body_numbers = numbers[1:] if header else numbers
     out = {key: np.empty(len(body)) for key, _ in wanted}
     for row, line in enumerate(body):
         cells = split(line)
         if header and len(cells) > len(names) and any(c.strip() for c in cells[len(names) :]):
             comma = delim == "," and any(c.strip().isdigit() for c in cells)
             raise DataError(
-                f"line {row + first_data_line} has {len(cells)} fields but the header names {len(names)}",
+                f"line {body_numbers[row]} has {len(cells)} fields but the header names {len(names)}",
                 str(path),
                 "the file seems to use decimal commas with comma separators: export it with ';' as separator or "
                 "with decimal points"
@@ -211,7 +215,7 @@ def read_text(
                 continue
             if not text:
                 raise DataError(
-                    f"column '{key}' has no value at line {row + first_data_line} (sample {row})",
+                    f"column '{key}' has no value at line {body_numbers[row]} (sample {row})",
                     str(path),
                     "fill or remove that line",
                 )
@@ -229,7 +233,7 @@ def read_text(
                     except ValueError:
                         pass
                 raise DataError(
-                    f"column '{key}' holds '{text}' at line {row + first_data_line}, which is not a number",
+                    f"column '{key}' holds '{text}' at line {body_numbers[row]}, which is not a number",
                     str(path),
                     "fix that cell, or set header: false if the file has no header row"
                     if header and row == 0
