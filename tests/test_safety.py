@@ -601,3 +601,27 @@ def test_a_test_file_with_unknown_outputs_is_unscored_not_a_crash(cli, tmp_path)
     assert report["metrics"]["test"]["nmse"] is None
     (note,) = [n for n in report["notes"] if "not scored" in n]
     assert "measured outputs, so it was not run there" in note
+
+
+def test_held_out_data_that_are_training_data_are_said(tmp_path):
+    """Overlapping segments of one file, and the training file given again as the test: the scores would
+    measure the fit to training data, which the notes say; disjoint splits give none."""
+    u, y = narx(3000, 1)
+    write_csv(tmp_path / "run.csv", {"t": np.arange(3000.0), "u": u, "y": y})
+    (tmp_path / "copy").mkdir()
+    write_csv(tmp_path / "copy" / "run.csv", {"t": np.arange(3000.0), "u": u, "y": y})
+
+    def notes(**data):
+        return load_dataset(_spec(tmp_path, **data)).overlap_notes()
+
+    assert notes() == []  # the default 60/20/20 split of one recording
+    (overlap, *_) = notes(segments=[[0, 2000], [1000, 3000]])
+    assert "shares" in overlap and "with the training split" in overlap
+    (shares,) = notes(split={"train": 0.8, "validation": 0.2}, test={"path": "copy/run.csv"})
+    assert shares.startswith("the test split shares 2400 of its 3000 samples with the training split")
+    write_csv(tmp_path / "again.csv", {"t": np.arange(3000.0), "u": u, "y": y})
+    (again,) = notes(split={"train": 0.8, "validation": 0.2}, test={"path": "again.csv"})
+    assert again.startswith("the test recording") and "holds the samples of the training recording" in again
+    u2, y2 = narx(3000, 2)
+    write_csv(tmp_path / "copy" / "run.csv", {"t": np.arange(3000.0), "u": u2, "y": y2})  # same name, other data
+    assert notes(split={"train": 0.8, "validation": 0.2}, test={"path": "copy/run.csv"}) == []

@@ -87,6 +87,23 @@ def beyond_range(u: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[tuple[fl
     return out
 
 
+def _file_of(rec: Recording) -> str:
+    """The file a recording was read from, by name: without a split's prefix (``test:``) or a segment's range."""
+    name = rec.name.rsplit("[", 1)[0] if rec.name.endswith("]") else rec.name
+    return name.split(":", 1)[1] if ":" in name and name.split(":", 1)[0] in ("validation", "test") else name
+
+
+def _same_samples(a: Recording, b: Recording) -> bool:
+    """Do two recordings hold the same samples over at least half of the shorter one, from their starts?"""
+    n = min(a.n, b.n)
+    return (
+        n > 0
+        and n >= 0.5 * max(a.n, b.n)
+        and np.array_equal(a.u[:n], b.u[:n])
+        and np.array_equal(a.y[:n], b.y[:n], equal_nan=True)
+    )
+
+
 def is_test(split: str) -> bool:
     """Is ``split`` a test split key (``test`` or ``test:<name>``)?"""
     return split == "test" or split.startswith("test:")
@@ -225,6 +242,55 @@ class Dataset:
                         }
                     )
         return found
+
+    def overlap_notes(self) -> list[str]:
+        """A validation or test split that shares samples with the training split (overlapping ranges of one
+        recording), or a separate recording that is a training recording again (the training file given as the
+        test): its scores then measure, in part or whole, how the model fits data it was trained on."""
+        train = self.ranges.get("train", [])
+        train_recs = {r for r, _, _ in train}
+        notes = []
+        for split in self.splits():
+            if split == "train":
+                continue
+            shared = sum(self._shared(r, a, b, r2, a2, b2) for r, a, b in self.ranges[split] for r2, a2, b2 in train)
+            if shared:
+                n = sum(b - a for _, a, b in self.ranges[split])
+                notes.append(
+                    f"the {split} split shares {shared} of its {n} samples with the training split: its scores "
+                    "measure, that far, how the model fits its own training data (give the splits disjoint ranges)"
+                )
+                continue
+            for rec in sorted({r for r, _, _ in self.ranges[split]} - train_recs):
+                same = next(
+                    (t for t in sorted(train_recs) if _same_samples(self.recordings[rec], self.recordings[t])), None
+                )
+                if same is not None:
+                    notes.append(
+                        f"the {split} recording '{self.recordings[rec].name}' holds the samples of the training "
+                        f"recording '{self.recordings[same].name}': its scores measure how the model fits its own "
+                        "training data (give a recording of its own)"
+                    )
+                    break
+        return notes
+
+    def _shared(self, r: int, a: int, b: int, r2: int, a2: int, b2: int) -> int:
+        """Samples two ranges hold in common: the same recording's overlap, or, for segments of one file (same
+        file name, overlapping file indices), the overlap whose samples are equal (two files of one name in
+        different folders differ)."""
+        if r == r2:
+            return max(0, min(b, b2) - max(a, a2))
+        x, z = self.recordings[r], self.recordings[r2]
+        if _file_of(x) != _file_of(z):
+            return 0
+        lo, hi = max(x.offset + a, z.offset + a2), min(x.offset + b, z.offset + b2)
+        if hi <= lo:
+            return 0
+        i, j = lo - x.offset, lo - z.offset
+        same = np.array_equal(x.u[i : i + hi - lo], z.u[j : j + hi - lo]) and np.array_equal(
+            x.y[i : i + hi - lo], z.y[j : j + hi - lo], equal_nan=True
+        )
+        return hi - lo if same else 0
 
     def excursion_notes(self) -> list[str]:
         """:meth:`input_excursions` as sentences for a user."""
