@@ -287,6 +287,27 @@ def test_the_data_a_sweep_reads_never_takes_its_json(tmp_path):
     assert "this is the data file the command reads" in line and data.read_bytes() == before
 
 
+def test_resume_refuses_data_that_changed_since_the_sweep_started(tmp_path):
+    """The identity covers the specs, not the files: a resume after the data file changed would mix points
+    scored on the old data with points scored on the new."""
+    from conftest import narx as narx_data
+    from conftest import write_csv
+
+    u, y = narx_data(600, 1)
+    data = write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    raw = tiny()
+    raw["data"] = {"path": "train.csv", "input": ["u"], "output": ["y"], "split": {"train": 0.7, "validation": 0.3}}
+    spec = write_yaml(tmp_path / "spec.yaml", raw)
+    write_yaml(tmp_path / "g.yaml", {"model.params.size": [10, 12]})
+    args = ("sweep", spec, "--grid", tmp_path / "g.yaml", "--workers", 1, "--out", tmp_path / "out", "-q")
+    assert run_cli(*args).exit_code == 0
+    assert run_cli(*args, "--resume").exit_code == 0  # unchanged data: nothing to run, no complaint
+    u2, y2 = narx_data(600, 2)
+    write_csv(data, {"u": u2, "y": y2})
+    line = one_line_error(run_cli(*args, "--resume"))
+    assert "train.csv changed since this sweep started" in line and "new --out" in line
+
+
 # ------------------------------------------------------------------------------ results and faults
 
 

@@ -61,7 +61,9 @@ class SweepFolder:
         return self.path / "models" / f"{key}.h5"
 
     # -- before the run ------------------------------------------------------------------
-    def check(self, identity: str, resume: bool, n_points: int) -> dict[str, dict[str, Any]]:
+    def check(
+        self, identity: str, resume: bool, n_points: int, data: dict[str, str] | None = None
+    ) -> dict[str, dict[str, Any]]:
         """Refuse a folder that is not this sweep's (or is, without ``resume``); return the records
         of the points a resume skips. Writes nothing."""
         where = str(self.path)
@@ -84,6 +86,14 @@ class SweepFolder:
                 f"{manifest.get('spec', '?')} with grid {manifest.get('grid', '?')}, created {manifest.get('created', '?')})",
                 where,
                 "choose another --out; nothing in it was touched",
+            )
+        changed = [f for f, sha in (manifest.get("data_sha256") or {}).items() if (data or {}).get(f) != sha]
+        if changed and resume:  # finished points were scored on other data
+            raise SpecError(
+                f"the data file {changed[0]} changed since this sweep started: its finished points were scored on "
+                "the data as it was",
+                where,
+                "rerun the sweep into a new --out (or restore the file)",
             )
         records = self.records()
         done = {k: r for k, r in records.items() if r.get("status") in FINISHED}

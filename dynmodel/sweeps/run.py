@@ -20,7 +20,7 @@ from typing import Any, Literal
 
 from .. import __version__
 from ..batch import ModelArrays, PointResult, Variant, cached_dataset, data_key, run_specs
-from ..errors import SpecError
+from ..errors import DynmodelError, SpecError
 from ..family import Progress, no_progress
 from ..spec import Spec, load_spec, parse_yaml, validate_spec
 from .folder import SweepFolder, write_atomic
@@ -110,9 +110,35 @@ def check_data(the_plan: Plan, points: list[Point], keep_loaded: bool, progress:
                 seen.add(pre)
 
 
-def _manifest(the_plan: Plan, created: str) -> dict[str, Any]:
+def data_files(points: list[Point]) -> dict[str, str]:
+    """SHA-256 of every data file the points read (path -> hex digest): the identity covers the specs, not the
+    files' contents, so a resume compares these to know its finished points were scored on the same data."""
+    import hashlib
+
+    from ..paths import spec_inputs
+
+    files: set[Path] = set()
+    for p in points:
+        try:
+            spec = validate_spec(p.raw, "<point>", Path.cwd())
+        except DynmodelError:
+            continue  # the data check names it
+        files.update(spec_inputs(spec).get("data file", []))
+    out = {}
+    for f in sorted(files):
+        if f.is_file():
+            h = hashlib.sha256()
+            with open(f, "rb") as fh:
+                for block in iter(lambda: fh.read(1 << 20), b""):
+                    h.update(block)
+            out[str(f)] = h.hexdigest()
+    return out
+
+
+def _manifest(the_plan: Plan, created: str, data: dict[str, str] | None = None) -> dict[str, Any]:
     return {
         "identity": the_plan.identity,
+        "data_sha256": data or {},
         "name": the_plan.name,
         "spec": the_plan.source,
         "grid": the_plan.grid.source,
@@ -257,7 +283,8 @@ def sweep(
     progress = progress or no_progress
     the_plan = plan(spec, grid)
     folder = SweepFolder(out) if out is not None else None
-    done = folder.check(the_plan.identity, resume, len(the_plan.points)) if folder else {}
+    data = data_files(the_plan.points) if folder else {}
+    done = folder.check(the_plan.identity, resume, len(the_plan.points), data) if folder else {}
     todo = [p for p in the_plan.points if p.key not in done]
     own = executor is None and bool(todo)
     if own:  # before the data check: an unreachable scheduler fails at once
@@ -277,7 +304,7 @@ def sweep(
     created = _now()
     if folder is not None:
         folder.create(
-            _manifest(the_plan, created),
+            _manifest(the_plan, created, data),
             {p.key: {**p.raw, "output": str(folder.model_path(p.key))} for p in the_plan.points},
         )
     recorder = _Recorder(the_plan, folder, keep, records)
