@@ -675,6 +675,16 @@ def _allowed_keys(loc: tuple) -> list[str] | None:
                 return None
             node = node.model_fields[part].annotation
             continue
+        tagged = {
+            m.tag: _unwrap(a)
+            for a in get_args(node)
+            if get_origin(a) is Annotated
+            for m in getattr(a, "__metadata__", ())
+            if isinstance(m, Tag)
+        }
+        if part in tagged:  # a union member named by its tag (a derived input's kind)
+            node = tagged[part]
+            continue
         args = [_unwrap(a) for a in get_args(node) if a is not type(None)]
         chosen = None
         for a in args:
@@ -726,6 +736,8 @@ def _dotted(loc: tuple) -> str:
             continue
         if _is_member_tag(p):
             continue
+        if p in DERIVED_KINDS and len(parts) >= 2 and parts[-2] == "derived_inputs" and parts[-1].startswith("["):
+            continue  # the union tag of a derived input (its kind), not a key the user wrote
         if isinstance(p, str) and parts == ["model"] and (p in registry.families() or p == "auto"):
             continue
         parts.append(f"[{p}]" if isinstance(p, int) else str(p))

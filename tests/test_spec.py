@@ -183,3 +183,21 @@ def test_the_default_model_file_stays_next_to_the_spec():
     ):
         spec = validate_spec({"name": name, "data": {"generator": "narx-system"}, "model": {"family": "narx"}})
         assert spec.output_path().name == file and spec.output_path().parent == spec.resolve_path(".")
+
+
+def test_a_misspelt_key_of_a_derived_input_names_that_kinds_keys():
+    with pytest.raises(SpecError) as info:
+        validate_spec(
+            {
+                "data": {
+                    "path": "a.csv",
+                    "input": ["u"],
+                    "output": ["y"],
+                    "derived_inputs": [{"direction": "u", "deadbnad": 1}],
+                },
+                "model": {"family": "narx"},
+            }
+        )
+    text = str(info.value)
+    assert "data.derived_inputs[0]: unknown key 'deadbnad'" in text and "did you mean 'deadband'" in text
+    assert "Allowed keys here: direction, deadband, name" in text
