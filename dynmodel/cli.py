@@ -388,8 +388,8 @@ def inspect(
     out.print(metrics_table(model.metrics, "free-run metrics"))
     if result.note:
         out.print(f"note: {result.note}", markup=False, soft_wrap=True)
-    if spec:
-        print(yaml.safe_dump(model.spec, sort_keys=False))
+    if spec:  # without output: a refit of the printed spec writes next to it, never over this model file
+        print(yaml.safe_dump({k: v for k, v in model.spec.items() if k != "output"}, sort_keys=False))
 
 
 # ------------------------------------------------------------------------------ reliability-check

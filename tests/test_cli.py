@@ -259,3 +259,22 @@ def test_bad_option_values_are_usage_errors(cli, tmp_path):
     r = cli("generate", "linear-system", "--out", tmp_path / "x.csv", "-p", "a0=2.5")
     line = _one_line_error(r)
     assert "--param" in line
+
+
+def test_the_spec_inspect_prints_refits_the_model_elsewhere(cli, tmp_path, quick_spec):
+    """inspect --spec prints the resolved spec without its output: fitting it reproduces the model's metrics and
+    writes next to the printed spec, never over the model file it came from."""
+    r = cli("fit", quick_spec, "--out", tmp_path / "m.h5", "-q")
+    assert r.exit_code == 0, r.stderr
+    before = (tmp_path / "m.h5").read_bytes()
+    r = cli("inspect", tmp_path / "m.h5", "--spec")
+    lines = r.stdout.splitlines()
+    text = "\n".join(lines[next(i for i, ln in enumerate(lines) if ln.startswith("name:")) :])
+    assert "\noutput:" not in text
+    (tmp_path / "again").mkdir()
+    (tmp_path / "again" / "s.yaml").write_text(text)
+    r = cli("fit", tmp_path / "again" / "s.yaml", "-q")
+    assert r.exit_code == 0, r.stderr
+    assert (tmp_path / "m.h5").read_bytes() == before
+    refit = dynmodel.load(tmp_path / "again" / "quickstart.h5")  # <name>.h5 next to the spec
+    assert refit.metrics["test"]["nmse"] == dynmodel.load(tmp_path / "m.h5").metrics["test"]["nmse"]
