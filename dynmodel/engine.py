@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import platform
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any
 
@@ -78,6 +80,20 @@ def _check_delay_lines(delay_lines: list[int], ds: Dataset, source: str) -> None
         )
 
 
+@contextmanager
+def family_errors(spec: Spec | ArraySpec) -> Iterator[None]:
+    """A family's ValueError (its one-line refusal of parameters or data) as the spec's ParameterError; the
+    package's own errors pass unchanged."""
+    try:
+        yield
+    except DynmodelError:
+        raise
+    except ValueError as exc:
+        raise ParameterError(
+            str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
+        ) from exc
+
+
 def check_plan(spec: Spec, ds: Dataset) -> Family | list[str]:
     """The spec's family, unfitted, after checking it can be fitted and scored on ``ds`` (its
     tune-in leaves scored samples in every split); one-line errors otherwise (``validate`` uses it).
@@ -101,14 +117,8 @@ def checked_family(spec: Spec, ds: Dataset) -> Family:
     check_warmup(ds, family.warmup, spec.source)
     protocol.check_warmup(family, ds, spec.source)  # before a long fit, where the parameters fix it
     splits = {split for split, rows in ds.ranges.items() if rows}
-    try:
+    with family_errors(spec):
         family.check_data(preprocessor(spec, ds).model_input_names, list(ds.output_names), splits)
-    except DynmodelError:
-        raise
-    except ValueError as exc:
-        raise ParameterError(
-            str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
-        ) from None
     return family
 
 
@@ -142,14 +152,8 @@ def _fit_family(
     pre = preprocessor(spec, ds)
     td = training_data(ds, pre)
     assert spec.cost is not None, "the cost is set for every family but auto (which searches)"
-    try:
+    with family_errors(spec):
         family.fit(td, spec.cost, family_rng(spec.seed), progress)
-    except DynmodelError:
-        raise
-    except ValueError as exc:
-        raise ParameterError(
-            str(exc), f"{spec.source}: model ({spec.model.family})", "adjust model.params or the data split"
-        ) from exc
     protocol.check_warmup(family, ds, spec.source)
     train_u, lengths = ds.concat_inputs("train")
     model = FittedModel(
