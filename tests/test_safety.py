@@ -625,3 +625,12 @@ def test_held_out_data_that_are_training_data_are_said(tmp_path):
     u2, y2 = narx(3000, 2)
     write_csv(tmp_path / "copy" / "run.csv", {"t": np.arange(3000.0), "u": u2, "y": y2})  # same name, other data
     assert notes(split={"train": 0.8, "validation": 0.2}, test={"path": "copy/run.csv"}) == []
+
+
+def test_a_split_too_small_to_score_is_said(tmp_path):
+    u, y = narx(600, 1)
+    write_csv(tmp_path / "run.csv", {"t": np.arange(600.0), "u": u, "y": y})
+    small = load_dataset(_spec(tmp_path, split={"train": [0, 590], "validation": [590, 600]}, transient=0))
+    (note,) = small.small_split_notes()
+    assert note.startswith("the validation split has only 10 scored sample(s)")
+    assert load_dataset(_spec(tmp_path)).small_split_notes() == []

@@ -60,6 +60,7 @@ class FitResult:
             for split, m in self.model.metrics.items()
             if m.get("unscored")
         ]
+        notes += self.dataset.small_split_notes(self.model.warmup)
         notes += self.dataset.overlap_notes()
         notes += self.dataset.excursion_notes()
         notes += [

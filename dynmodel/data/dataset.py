@@ -87,6 +87,10 @@ def beyond_range(u: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[tuple[fl
     return out
 
 
+#: a validation or test split with fewer scored samples than this is noted (:meth:`Dataset.small_split_notes`)
+FEW_SCORED = 30
+
+
 def _file_of(rec: Recording) -> str:
     """The file a recording was read from, by name: without a split's prefix (``test:``) or a segment's range."""
     name = rec.name.rsplit("[", 1)[0] if rec.name.endswith("]") else rec.name
@@ -242,6 +246,19 @@ class Dataset:
                         }
                     )
         return found
+
+    def small_split_notes(self, warmup: int = 0) -> list[str]:
+        """A validation or test split with fewer than :data:`FEW_SCORED` scored samples: its scores say little (a
+        2-sample validation split scored 335 % NMSE and chose the model)."""
+        notes = []
+        for split in self.splits():
+            n = self.n_scored(split, warmup)
+            if split != "train" and n < FEW_SCORED:
+                notes.append(
+                    f"the {split} split has only {n} scored sample(s): its scores say little (give it at least "
+                    f"{FEW_SCORED}, e.g. a larger share in data.split or a shorter transient)"
+                )
+        return notes
 
     def overlap_notes(self) -> list[str]:
         """A validation or test split that shares samples with the training split (overlapping ranges of one
