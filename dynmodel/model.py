@@ -168,32 +168,39 @@ class FittedModel:
         A free run that diverges (NaN from that sample on) and an input beyond the training range by more than
         5 % of its width are said as a :class:`~dynmodel.errors.ModelWarning`, as ``dynmodel predict`` says them.
         """
+        um = self._inputs(u)  # converted and checked once, for the run and the warnings
         try:
-            run = self.run(u, y_tune)
+            run = self.run(um, y_tune)
         except DataError:
             raise
         except ValueError as exc:  # the family's own refusal (a tune-in it needs and lacks): the same error class
             fix = f"pass y_tune with the first {self.warmup} measured outputs" if self.warmup else "check the input"
             raise DataError(str(exc), "predict", fix) from None
-        self._warn_about(run, self._inputs(u))
+        self._warn_about(run, um)
         return like_input(u, run.y, self.output_names)
+
+    def input_excursions(self, u: np.ndarray, margin: float = 0.05) -> list[tuple[str, float, int]]:
+        """(input, excess, sample) for every input of ``u`` (n, inputs) that goes beyond the training input range
+        by more than ``margin`` of its width, at the sample where it goes farthest; [] without training inputs."""
+        from .data.dataset import beyond_range
+
+        train = self.train_input
+        if train is None or train.ndim != 2 or not train.shape[0] or train.shape[1] != u.shape[1]:
+            return []
+        ranges = beyond_range(u, train.min(axis=0), train.max(axis=0))
+        return [(name, e, k) for name, (e, k) in zip(self.input_names, ranges) if e > margin]
 
     def _warn_about(self, run: Run, u: np.ndarray, margin: float = 0.05) -> None:
         import warnings
 
         from .api import _caller_level
-        from .data.dataset import beyond_range
         from .errors import ModelWarning
 
-        texts = []
-        train = self.train_input
-        if train is not None and train.ndim == 2 and train.shape[0] and train.shape[1] == u.shape[1]:
-            for name, (excess, k) in zip(self.input_names, beyond_range(u, train.min(axis=0), train.max(axis=0))):
-                if excess > margin:
-                    texts.append(
-                        f"the input '{name}' leaves the training range by {100 * excess:.0f} % of its width (sample "
-                        f"{k}): the model extrapolates there"
-                    )
+        texts = [
+            f"the input '{name}' leaves the training range by {100 * excess:.0f} % of its width (sample {k}): the "
+            "model extrapolates there"
+            for name, excess, k in self.input_excursions(u, margin)
+        ]
         if run.diverged_at is not None:
             texts.append(
                 f"the free run diverged at sample {run.diverged_at}; the predictions are NaN from there on. Fix: keep "

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 
-from ..data.dataset import beyond_range
 from ..errors import FreeRunDiverged
 from ..model import FittedModel, Run
 from ..prediction import PredictionInput
@@ -40,16 +39,11 @@ class PredictResult:
         """An input that goes beyond the training input range by more than ``margin`` of its width, as ``fit``
         says it of a validation or test split: the model extrapolates there (a polynomial's input monomials
         grow, a readout meets states it never saw)."""
-        train, u = self.model.train_input, self.inputs.u
-        if train is None or train.ndim != 2 or train.shape[0] == 0 or train.shape[1] != u.shape[1]:
-            return []
-        notes = []
-        for name, (excess, k) in zip(self.model.input_names, beyond_range(u, train.min(axis=0), train.max(axis=0))):
-            if excess > margin:
-                notes.append(
-                    f"the input '{name}' leaves the training range by {100 * excess:.0f} % of its width (sample {k}, "
-                    f"{self.inputs.time_name} = {self.inputs.time[k]:.6g}): the model extrapolates there"
-                )
+        notes = [
+            f"the input '{name}' leaves the training range by {100 * excess:.0f} % of its width (sample {k}, "
+            f"{self.inputs.time_name} = {self.inputs.time[k]:.6g}): the model extrapolates there"
+            for name, excess, k in self.model.input_excursions(self.inputs.u, margin)
+        ]
         return notes + self.output_notes(margin)
 
     def output_notes(self, margin: float = 0.05) -> list[str]:
