@@ -149,16 +149,11 @@ def _set_dotted(target: dict[str, Any], key: str, value: Any) -> None:
 def read_plant(path: Path) -> dict[str, Any]:
     """The plant description of a YAML file (``generator:`` and ``params:``, or a whole dynmodel spec);
     one-line SpecErrors for a missing file, malformed YAML or a file that is not a mapping."""
-    import yaml
-
-    from .spec import read_spec_text
+    from .spec import read_spec_text, read_yaml
 
     if not path.is_file():
         raise SpecError("plant description not found", str(path), "check the path")
-    try:
-        described = yaml.safe_load(read_spec_text(path))
-    except yaml.YAMLError as exc:
-        raise SpecError(f"malformed YAML: {str(exc).splitlines()[0]}", str(path), "check the file") from None
+    described = read_yaml(read_spec_text(path), str(path))
     if not isinstance(described, dict):
         raise SpecError("the plant description must be a mapping", str(path), "write generator: NAME and params: {...}")
     return described

@@ -27,7 +27,7 @@ from dynmodel import spec as spec_mod
 from dynmodel.batch import Variant, run_specs
 from dynmodel.cli import app
 from dynmodel.executors import InProcessExecutor, LocalPoolExecutor, make_executor, numba_cache_dir
-from dynmodel.sweeps import build_points, parse_grid, point_seed
+from dynmodel.sweeps import build_points, load_grid, parse_grid, point_seed
 
 TESTS = Path(__file__).resolve().parent
 
@@ -182,6 +182,16 @@ def test_grid_points_values_and_seeds(tmp_path):
     )
     swept = build_points(tiny(), tmp_path, parse_grid({"seed": {"range": [3, 9, 2]}, "model.params.size": [10]}))
     assert [p.seed for p in swept] == [3, 5, 7]
+
+
+def test_grid_value_spelling_does_not_change_the_configuration(tmp_path):
+    """1e-1 and 0.1e0 (PyYAML read the first as text), 1 and 1.0: the same value, the same point seed."""
+    (tmp_path / "a.yaml").write_text("model.params.scale.value: [1e-1, 1]\n")
+    (tmp_path / "b.yaml").write_text("model.params.scale.value: [0.1e0, 1.0]\n")
+    a = build_points(tiny(), tmp_path, load_grid(tmp_path / "a.yaml"))
+    b = build_points(tiny(), tmp_path, load_grid(tmp_path / "b.yaml"))
+    assert [p.values["model.params.scale.value"] for p in a] == [0.1, 1]
+    assert [p.seed for p in a] == [p.seed for p in b] and a[0].seed != a[1].seed
 
 
 @pytest.mark.parametrize(

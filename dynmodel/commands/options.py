@@ -12,7 +12,7 @@ from ..reliability import Sine
 
 def parse_params(items: Mapping[str, Any] | Sequence[str], example: str = "a=3.5") -> dict[str, Any]:
     """The values of repeated ``key=value`` items, each value read as YAML (a mapping is taken as is)."""
-    import yaml
+    from ..spec import read_yaml
 
     if isinstance(items, Mapping):
         return dict(items)
@@ -22,8 +22,8 @@ def parse_params(items: Mapping[str, Any] | Sequence[str], example: str = "a=3.5
             raise SpecError(f"'{item}' is not key=value", "--param", f"write e.g. --param {example}")
         key, raw = item.split("=", 1)
         try:
-            values[key.strip()] = yaml.safe_load(raw)
-        except yaml.YAMLError:
+            values[key.strip()] = read_yaml(raw, "--param")
+        except SpecError:
             raise SpecError(
                 f"cannot read the value of '{item}'",
                 "--param",

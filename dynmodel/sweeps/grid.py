@@ -272,13 +272,25 @@ def set_dotted(raw: dict[str, Any], key: str, value: Any, where: str) -> None:
 def point_seed(base_seed: int, values: dict[str, Any]) -> int:
     """The seed of a point when the grid does not sweep ``seed``: the first 32-bit word of
     ``SeedSequence([base_seed, *sha256(values)])``, ``values`` being the point's swept values as
-    canonical JSON (so the seed follows the configuration, not its position in the grid)."""
+    canonical JSON (so the seed follows the configuration, not its position in the grid; a whole number
+    counts the same written 1 or 1.0)."""
     import numpy as np
 
-    text = json.dumps(values, sort_keys=True, separators=(",", ":"), default=str)
+    text = json.dumps(_canonical(values), sort_keys=True, separators=(",", ":"), default=str)
     digest = hashlib.sha256(text.encode()).digest()
     words = [int.from_bytes(digest[i : i + 4], "little") for i in range(0, 16, 4)]
     return int(np.random.SeedSequence([int(base_seed), *words]).generate_state(1, np.uint32)[0])
+
+
+def _canonical(value: Any) -> Any:
+    """``value`` with whole floats as ints (1.0 -> 1), inside lists and mappings too."""
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    if isinstance(value, dict):
+        return {k: _canonical(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_canonical(v) for v in value]
+    return value
 
 
 def _validate(raw: dict[str, Any], source: str, base_dir: Path, key_values: dict[str, Any]):
