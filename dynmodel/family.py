@@ -28,12 +28,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, Union, get_args, get_origin
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
 
 from .data.training import TrainingData
 from .errors import ParameterError
+from .fields import refuse_booleans
 
 if TYPE_CHECKING:
     from .extensions import Extension, ExtensionContext
@@ -53,6 +54,11 @@ class FamilyParams(BaseModel):
     """Base for a family's parameter model: unknown parameters are rejected."""
 
     model_config = ConfigDict(extra="forbid")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_booleans(cls, data: Any) -> Any:
+        return refuse_booleans(cls, data)
 
 
 @dataclass

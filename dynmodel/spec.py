@@ -34,6 +34,7 @@ from typing_extensions import Self
 
 from . import registry
 from .errors import SpecError
+from .fields import NUMBER_NOT_BOOLEAN, refuse_booleans
 from .metrics import DEFAULT_METRICS, MetricName
 
 #: field separators by name, and as written in single-quoted YAML (where '\t' stays a backslash and a t)
@@ -62,6 +63,11 @@ class StrictModel(BaseModel):
     """Base for every spec section: unknown keys are errors."""
 
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_booleans(cls, data: Any) -> Any:
+        return refuse_booleans(cls, data)
 
 
 #: ``data.path`` of recordings given in Python (``dynmodel.fit(spec, data=...)``), never a file
@@ -186,6 +192,31 @@ class FileSourceFields(StrictModel):
         description="interpolate every recording linearly onto a uniform grid with this step in seconds "
         "(for non-uniformly sampled files; needs time_column; sets the sampling time)",
     )
+
+    @model_validator(mode="after")
+    def _time_unit_of_a_named_unit(self) -> Self:
+        """A time column named in milli- or microseconds (t_ms, time [us]) read as seconds makes every time in
+        seconds (resample, the sampling time, a saturating drift) wrong by 1000: say so unless time_unit is set."""
+        col = self.time_column
+        unit = _named_time_unit(col) if isinstance(col, str) and "time_unit" not in self.model_fields_set else None
+        if unit is not None:
+            name, factor = unit
+            raise ValueError(
+                f"the time column '{col}' reads as {name}, but time_unit (seconds per unit) is 1: add time_unit: "
+                f"{factor} (or time_unit: 1 if it holds seconds)"
+            )
+        return self
+
+
+def _named_time_unit(column: str) -> tuple[str, str] | None:
+    """('milliseconds', '0.001') for a column name such as t_ms, time(ms), time [ms]; None for others."""
+    for pattern, unit in (
+        (r"ms|msec|millis|milliseconds?", ("milliseconds", "0.001")),
+        (r"us|µs|usec|micros|microseconds?", ("microseconds", "1e-6")),
+    ):
+        if re.search(rf"(^|[^a-z])({pattern})([^a-z]|$)", column.lower()):
+            return unit
+    return None
 
 
 class SeparateSource(StrictModel):
@@ -753,6 +784,8 @@ def validation_summary(exc: Exception) -> str:
         return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
     e = next((x for x in errors if x["type"] == "extra_forbidden"), errors[0])
     path = tuple(p for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+    if e["type"] == NUMBER_NOT_BOOLEAN:
+        path += (e["ctx"]["key"],)
     if e["type"] == "extra_forbidden" and path:
         path, msg = path[:-1], f"unknown key '{path[-1]}'"
     else:
@@ -769,8 +802,11 @@ def format_validation_error(err: ValidationError, source: str) -> SpecError:
     errors = err.errors()
     e = next((x for x in errors if x["type"] == "extra_forbidden"), errors[0])
     loc = tuple(e["loc"])
-    where = f"{source}: {_dotted(loc)}" if loc else source
     kind = e["type"]
+    if kind == NUMBER_NOT_BOOLEAN:  # raised for the whole section: the key is in its context
+        loc += (e["ctx"]["key"],)
+        e = {**e, "input": e["ctx"]["value"]}
+    where = f"{source}: {_dotted(loc)}" if loc else source
     if kind == "extra_forbidden":
         key = str(loc[-1])
         allowed = _allowed_keys(loc) or []

@@ -4,6 +4,8 @@ non-uniformly sampled files."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from conftest import make_spec, write_csv, write_yaml
@@ -187,6 +189,21 @@ def test_time_column_checks(tmp_path):
     raw["data"]["resample"] = 0.01
     with pytest.raises(SpecError, match="resample needs the time stamps"):
         load_dataset(make_spec(raw, tmp_path))
+
+
+@pytest.mark.parametrize(
+    "column, unit", [("t_ms", "0.001"), ("time (ms)", "0.001"), ("Time [us]", "1e-6"), ("t_msec", "0.001")]
+)
+def test_a_time_column_named_in_milliseconds_needs_its_unit(tmp_path, column, unit):
+    """Read as seconds, stamps in ms make resample: 0.01 a grid of 10 us (a 1000-fold upsampling)."""
+    raw = {
+        "data": {"path": "f.csv", "time_column": column, "resample": 0.01, "input": ["u"], "output": ["y"]},
+        "model": {"family": "narx"},
+    }
+    with pytest.raises(SpecError, match=rf"'{re.escape(column)}' reads as .*add time_unit: {unit} "):
+        make_spec(raw, tmp_path)
+    make_spec({**raw, "data": {**raw["data"], "time_unit": 1}}, tmp_path)  # said explicitly: seconds
+    make_spec({**raw, "data": {**raw["data"], "time_column": "t"}}, tmp_path)
 
 
 def test_validate_cli_shows_the_resampled_data(cli, tmp_path):

@@ -201,3 +201,31 @@ def test_a_misspelt_key_of_a_derived_input_names_that_kinds_keys():
     text = str(info.value)
     assert "data.derived_inputs[0]: unknown key 'deadbnad'" in text and "did you mean 'deadband'" in text
     assert "Allowed keys here: direction, deadband, name" in text
+
+
+@pytest.mark.parametrize(
+    "text, where",
+    [
+        ("seed: on", "seed"),
+        ("model: {family: narx, params: {degree: yes}}", "model.params.degree"),
+        ("model: {family: esn, params: {size: true}}", "model.params.size"),
+        ("data: {generator: narx-system, n: 2000, noise: {std: no}}", "data.noise.std"),
+        ("data: {generator: narx-system, n: 2000, split: {train: yes}}", "data.split.train"),
+    ],
+)
+def test_a_boolean_for_a_number_is_refused(text, where):
+    """pydantic reads true as 1: ``degree: yes`` silently fitted degree 1."""
+    base = "name: t\n"
+    base += "" if text.startswith("data") else "data: {generator: narx-system, n: 2000}\n"
+    base += "" if text.startswith("model") else "model: {family: narx}\n"
+    raw = parse_yaml(base + text + "\n", "s.yaml")
+    with pytest.raises(SpecError) as err:
+        validate_spec(raw, "s.yaml")
+    assert err.value.where == f"s.yaml: {where}" and "a number, not true or false" in err.value.what
+
+
+def test_yaml_exponents_are_numbers():
+    raw = parse_yaml(
+        "name: t\ndata: {generator: narx-system, n: 2000}\nmodel: {family: narx, params: {ridge: 1e-6}}\n", "s"
+    )
+    assert raw["model"]["params"]["ridge"] == 1e-6
