@@ -306,6 +306,22 @@ def test_decimal_commas(tmp_path):
         read_columns(tmp_path / "comma.csv", ["u", "y"])
 
 
+def test_a_units_row_under_the_header_is_skipped_and_said(tmp_path):
+    """Lab exports often put the units under the names (s, mm, N): they are no sample."""
+    u, y = narx(30, 4)
+    rows = "".join(f"{i * 0.01:.2f};{float(a)!r};{float(b)!r}\n" for i, (a, b) in enumerate(zip(u, y)))
+    (tmp_path / "units.csv").write_text("t;u;y\n[s];[mm];[N]\n" + rows + "0.30;1.0;oops\n")
+    with pytest.warns(DataNote, match=r"line 2 \(\[s\], \[mm\], \[N\]\) holds no number: read as the columns' units"):
+        got = read_columns(tmp_path / "units.csv", ["u"])
+    np.testing.assert_array_equal(got["u"][:30], u)
+    with pytest.raises(DataError, match="'oops' at line 33"), warnings.catch_warnings():  # the file's own line
+        warnings.simplefilter("ignore")
+        read_columns(tmp_path / "units.csv", ["y"])
+    (tmp_path / "text.csv").write_text("t;u;y\n0;a;b\n1;2;3\n")  # a number in the row: not units
+    with pytest.raises(DataError, match="'a' at line 2"):
+        read_columns(tmp_path / "text.csv", ["u"])
+
+
 # ---------------------------------------------------------------- data checks
 
 

@@ -111,6 +111,18 @@ def _commented_header(raw_lines: list[str], lines: list[str], delim: str | None,
     return [raw_lines[k - 1].lstrip()[1:].strip(), *lines]
 
 
+def _is_units_row(cells: list[str], following: list[str]) -> bool:
+    """A row of units under the header (s, mm, N): no cell of it is a number, and the next row has numbers."""
+    texts = [c.strip() for c in cells if c.strip()]
+    numeric = [_is_number(c.strip()) or bool(_DECIMAL_COMMA.match(c.strip())) for c in following if c.strip()]
+    return (
+        bool(texts)
+        and not any(_is_number(c) or _DECIMAL_COMMA.match(c) for c in texts)
+        and bool(numeric)
+        and all(numeric)
+    )
+
+
 def _is_number(text: str) -> bool:
     try:
         float(text)
@@ -174,6 +186,15 @@ def read_text(
                 f"give exactly {width} names",
             )
         body = lines
+    if header and len(body) > 1 and _is_units_row(split(body[0]), split(body[1])):
+        warnings.warn(
+            DataNote(
+                f"{path}: line {numbers[1]} ({', '.join(c.strip() for c in split(body[0]))}) holds no number: read "
+                "as the columns' units and skipped"
+            ),
+            stacklevel=2,
+        )
+        body, numbers = body[1:], [numbers[0], *numbers[2:]]
     if not body:
         raise DataError("the file has a header row but no samples", str(path), "check the file")
     index: dict[str, int] = {}
