@@ -184,8 +184,8 @@ def recordings(
                 label,
                 "give inputs and outputs of the same length",
             )
-        ins = ins or un or default_names("u", ua.shape[1])
-        outs = outs or yn or default_names("y", ya.shape[1])
+        ins = ins or un or _unused_names("u", "input", ua.shape[1], outs or yn or [])
+        outs = outs or yn or _unused_names("y", "output", ya.shape[1], ins)
         for arr, names, what in ((ua, ins, "input"), (ya, outs, "output")):
             if arr.shape[1] != len(names):
                 raise DataError(
@@ -199,9 +199,16 @@ def recordings(
         raise DataError(
             f"'{sorted(set(ins) & set(outs))[0]}' names both an input and an output",
             label,
-            "give distinct input_names and output_names",
+            "rename one (Series.rename, DataFrame.rename) or give distinct input_names and output_names",
         )
     return recs, ins, outs
+
+
+def _unused_names(prefix: str, other: str, k: int, taken: Sequence[str]) -> list[str]:
+    """The default names of ``k`` unnamed channels (``u`` or ``y``), or ``input`` / ``output`` when the
+    other side's names already hold them (an input Series named ``y`` beside an unnamed output)."""
+    names = default_names(prefix, k)
+    return default_names(other, k) if set(names) & set(taken) else names
 
 
 def like_input(u: Any, y: np.ndarray, names: Sequence[str]) -> Any:

@@ -399,6 +399,16 @@ def test_every_user_error_is_a_dynmodel_error_and_a_value_error(system):
         assert "\n" not in str(caught.value)
 
 
+def test_an_input_series_named_y_beside_an_unnamed_output(system):
+    """The unnamed side takes a name the other does not hold (it clashed: 'y' named both)."""
+    pd = pytest.importorskip("pandas")
+    (u, y), _ = system
+    model = Narx(degree=1, lags={"y": [0, 1], "output": [1, 2]}).fit(pd.Series(u, name="y"), y)
+    assert model.output_names_ == ["output"] and model.score(pd.Series(u, name="y"), y) > 0.5
+    with pytest.raises(DataError, match="'u' names both an input and an output.*Series.rename"):
+        Narx().fit(pd.Series(u, name="u"), pd.Series(y, name="u"))
+
+
 def test_non_numeric_dataframe_columns_are_named(system):
     pd = pytest.importorskip("pandas")
     (u, y), _ = system
