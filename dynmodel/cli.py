@@ -47,6 +47,22 @@ class _OneLineErrors(TyperGroup):
             sys.exit(1)
         sys.exit(rv if isinstance(rv, int) else 0)
 
+    def get_help_option(self, ctx: Any) -> Any:
+        return _flag(super().get_help_option(ctx))
+
+    def get_command(self, ctx: Any, cmd_name: str) -> Any:
+        command = super().get_command(ctx, cmd_name)
+        if command is not None:
+            _flag(command.get_help_option(ctx))
+        return command
+
+
+def _flag(option: Any) -> Any:
+    """--help as a flag in the help text (typer would show "<bool>", as if it took a value)."""
+    if option is not None:
+        option.metavar = FLAG
+    return option
+
 
 app = typer.Typer(
     cls=_OneLineErrors,
@@ -199,7 +215,7 @@ _FORCE = typer.Option(
 @handled
 @json_stdout
 def fit(
-    spec: Path = typer.Argument(..., help="YAML spec"),
+    spec: Path = typer.Argument(..., metavar="SPEC", help="YAML spec"),
     out_path: Optional[Path] = typer.Option(None, "--out", help="model file (overrides the spec's output)"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="write metrics and model path as JSON"),
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of measured vs free-running output"),
@@ -273,7 +289,7 @@ def _print_search(record: dict[str, Any]) -> None:
 @app.command()
 @handled
 def validate(
-    spec: Path = typer.Argument(..., help="YAML spec"),
+    spec: Path = typer.Argument(..., metavar="SPEC", help="YAML spec"),
     resolved: bool = typer.Option(False, "--resolved", help="print the full resolved spec as YAML", metavar=FLAG),
 ) -> None:
     """Check a spec and its data without fitting: keys, files, columns, values, split sizes, the output path."""
@@ -397,7 +413,7 @@ def inspect(
 @handled
 @json_stdout
 def reliability_check(
-    model_path: Optional[Path] = typer.Argument(None, metavar="[MODEL]", help="model file written by dynmodel fit"),
+    model_path: Optional[Path] = typer.Argument(None, metavar="MODEL", help="model file written by dynmodel fit"),
     system: Optional[str] = typer.Option(
         None, "--system", help="check a built-in test system instead (see dynmodel plugins)"
     ),
@@ -444,7 +460,7 @@ def reliability_check(
 @handled
 @json_stdout
 def diagnose_cmd(
-    spec: Path = typer.Argument(..., help="YAML spec of the model to diagnose"),
+    spec: Path = typer.Argument(..., metavar="SPEC", help="YAML spec of the model to diagnose"),
     report: Optional[Path] = typer.Option(
         None,
         "--report",
@@ -511,7 +527,7 @@ def _print_diagnosis(result) -> None:
 @handled
 @json_stdout
 def sweep_cmd(
-    spec: Path = typer.Argument(..., help="YAML spec"),
+    spec: Path = typer.Argument(..., metavar="SPEC", help="YAML spec"),
     grid: Path = typer.Option(..., "--grid", help="YAML grid: dotted spec keys and their values (docs/sweep.md)"),
     workers: Optional[int] = typer.Option(
         None, "--workers", min=1, help="local worker processes (default: one per core; 1 runs in-process)"
@@ -682,7 +698,7 @@ def schema(
 @app.command()
 @handled
 def generate(
-    generator: str = typer.Argument(..., help="generator name (see `dynmodel plugins`)"),
+    generator: str = typer.Argument(..., metavar="NAME", help="generator name (see `dynmodel plugins`)"),
     n: int = typer.Option(10000, "--n", min=1, help="number of samples"),
     seed: int = typer.Option(0, "--seed", min=0, help="seed of the realization"),
     out_path: Path = typer.Option(..., "--out", help="CSV file to write"),

@@ -118,6 +118,12 @@ def test_plugins_schema_validate_generate(cli, tmp_path):
     assert np.allclose(y[1:], 0.7 * 4 * y[:-1] * (1 - y[:-1]) + 0.3 * u[1:], atol=1e-9)
 
 
+@pytest.mark.parametrize("command", [[], ["fit"], ["reliability-check"], ["generate"]])
+def test_help_shows_flags_without_a_value_type(cli, command):
+    r = cli(*command, "--help")
+    assert r.exit_code == 0 and "--help" in r.stdout and "<bool>" not in r.stdout and "[[" not in r.stdout
+
+
 def test_rmse_and_fit_metrics(cli, tmp_path):
     spec = narx_spec(n=3000, test_n=2000, transient=100, size=50, split={"train": 0.8, "validation": 0.2})
     spec["evaluation"] = {"metrics": ["nmse", "max", "rmse", "fit"]}
