@@ -179,6 +179,14 @@ def test_time_column_checks(tmp_path):
     np.savetxt(uniform, gap, delimiter="\t", fmt="%.10g")
     with pytest.raises(DataError, match=r"jump by 0\.51 s after t = .* \(sample 299; .*samples are missing.*Fix: cut"):
         load_dataset(make_spec(raw, tmp_path))
+    n = len(gap)
+    with pytest.raises(DataError, match=rf"data.segments: \[\[0, 300\], \[300, {n}\]\]\)"):
+        load_dataset(make_spec(raw, tmp_path))
+    # the segments the message proposes: two recordings, each uniform, at the file's sampling time
+    cut = load_dataset(make_spec({**raw, "data": {**raw["data"], "segments": [[0, 300], [300, n]]}}, tmp_path))
+    assert cut.sampling_time == pytest.approx(0.01) and [r.n for r in cut.recordings] == [300, n - 300]
+    with pytest.raises(DataError, match=r"\[0:301\].*jump by 0\.51 s"):  # a segment across the gap
+        load_dataset(make_spec({**raw, "data": {**raw["data"], "segments": [[0, 301], [301, n]]}}, tmp_path))
     back = np.loadtxt(uniform)
     back[300:, 0] -= 500.0
     back[10, 0] = back[8, 0]

@@ -380,10 +380,19 @@ def _file_recordings(
             check_finite(np.where(np.isnan(data[:, n_in:]), 0.0, data[:, n_in:]), names[n_in:], str(path))
         else:
             check_finite(data, names, str(path))
-        if t is not None:
+        segments = src.get("segments") or [(0, data.shape[0])]
+        if t is not None and src.get("segments") and not src.get("resample"):
+            # recordings cut out of one file: only each one's own stamps need be uniform (the cuts may skip gaps)
+            for a, b in segments:
+                if 0 <= a < b - 1 < data.shape[0]:
+                    _, step = resample.uniform(
+                        t[a:b] * float(src.get("time_unit") or 1.0), data[a:b], None, f"{path}[{a}:{b}]"
+                    )
+                    steps.append((step, f"{path}[{a}:{b}]"))
+        elif t is not None:
             data, step = resample.uniform(t * float(src.get("time_unit") or 1.0), data, src.get("resample"), str(path))
             steps.append((step, str(path)))
-        segments = src.get("segments") or [(0, data.shape[0])]
+            segments = src.get("segments") or [(0, data.shape[0])]
         for a, b in segments:
             if not 0 <= a < b <= data.shape[0]:
                 raise DataError(

@@ -41,6 +41,13 @@ def check_stamps(t: np.ndarray, where: str) -> np.ndarray:
     return dt
 
 
+def _segments_around(gaps: np.ndarray, n: int) -> str:
+    """The data.segments that leave out the steps ``gaps`` (a gap after sample g splits at g + 1)."""
+    cuts = [0, *(int(g) + 1 for g in gaps), n]
+    shown = [f"[{a}, {b}]" for a, b in zip(cuts[:-1], cuts[1:]) if b - a > 1]
+    return "[" + ", ".join(shown[:4]) + (", ..." if len(shown) > 4 else "") + "]"
+
+
 def uniform(t: np.ndarray, data: np.ndarray, step: float | None, where: str) -> tuple[np.ndarray, float]:
     """(data on a uniform grid, its step in seconds) from time stamps ``t`` in seconds.
 
@@ -59,8 +66,9 @@ def uniform(t: np.ndarray, data: np.ndarray, step: float | None, where: str) -> 
                     f"the time stamps jump by {dt[g]:.6g} s after t = {t[g]:.6g} s (sample {g}; median step "
                     f"{med:.6g} s{f', {gaps.size} such gaps' if gaps.size > 1 else ''}): samples are missing there",
                     where,
-                    "cut the file at the gap into recordings of their own (data.path: [a, b]), or add "
-                    f"'resample: {med:.6g}' to bridge it by linear interpolation",
+                    "cut the file at the gap into recordings of their own (data.segments: "
+                    f"{_segments_around(gaps, len(t))}), or add 'resample: {med:.6g}' to bridge it by linear "
+                    "interpolation",
                 )
             raise DataError(
                 f"the time stamps are not uniform (steps from {dt.min():.6g} to {dt.max():.6g} s, median {med:.6g} s)",
