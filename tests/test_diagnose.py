@@ -384,3 +384,24 @@ def test_named_test_sets_get_a_gain_and_a_worse_extension_is_said(tmp_path):
     assert result.extended_warning() is None and result.to_json()["warning"] is None
     gain["test_nmse_after"] = 10 * gain["test_nmse_before"]  # as if the extension did not carry over
     assert result.extended_warning().startswith("the extended model validates better but is worse on the test:a")
+
+
+def test_an_inconclusive_reliability_check_is_said_beside_the_verdict(tmp_path):
+    """An ESN at spectral radius 0.99 forgets its state too slowly for the detector's 1000-sample check: the
+    check is inconclusive, which is no finding, and the diagnosis ended (here: no extension gained) without a
+    word about it."""
+    u = np.random.default_rng(0).standard_normal(3000)
+    np.savetxt(tmp_path / "d.csv", np.column_stack([u, narx_system(u)]), delimiter=",", header="u,y", comments="")
+    esn = {"size": 60, "connectivity": 0.2, "bias_scale": 0.0, "scale": {"by": "spectral", "value": 0.99}}
+    spec = {
+        "name": "slow",
+        "data": {"path": str(tmp_path / "d.csv"), "input": ["u"], "output": ["y"]},
+        "model": {"family": "esn", "params": esn},
+        "seed": 0,
+    }
+    result = diagnose(spec, "<test>", tmp_path, Settings(seeds=1, rounds=1))
+    last = result.rounds[-1]
+    check = next(f for f in last.findings if f.cause == "unreliable-model")
+    assert check.evidence["verdict"] == "inconclusive" and not check.significant and not last.accepted
+    assert "the reliability check over 1000 samples was inconclusive" in last.outcome
+    assert "dynmodel reliability-check" in result.to_json()["extended"]["rounds"][-1]["outcome"]

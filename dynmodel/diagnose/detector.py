@@ -71,6 +71,7 @@ class Finding:
     gates: dict[str, Any] = field(default_factory=dict)
     applicable: bool = True  # False: the detector does not apply to this model or data (reason says why)
     generic: bool = False  # a verdict on the whole structure (inadequate-structure): ranked after specific causes
+    caveat: str = ""  # a check that could not decide (e.g. inconclusive): said beside an "adequate" verdict
 
     @property
     def extension(self) -> Extension | None:
@@ -85,6 +86,7 @@ class Finding:
             "reason": self.reason,
             "gates": self.gates,
             "generic": self.generic,
+            "caveat": self.caveat,
             "evidence": self.evidence,
             "extension": self.extension.to_json() if self.extension else None,
             "alternatives": [x.to_json() for x in self.extensions[1:]],

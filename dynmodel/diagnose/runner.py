@@ -323,6 +323,12 @@ def _weak_note(rnd: Round, split: str) -> str:
     )
 
 
+def _caveats(rnd: Round) -> str:
+    """The checks that could not decide (a finding's caveat), which the final verdict must not hide."""
+    said = [f.caveat for f in rnd.findings if f.applicable and not f.significant and f.caveat]
+    return "".join(f"; but {c}" for c in said)
+
+
 TIE = 0.01  # candidates within 1 % of the best validation NMSE count as equal: the earliest is kept
 
 
@@ -382,6 +388,7 @@ def diagnose(
                         current = best.fit
             rnd.seconds = time.perf_counter() - t0
             if not rnd.accepted:
+                rnd.outcome += _caveats(rnd)  # the model the diagnosis ends with: what its checks could not decide
                 break
         result = Diagnosis(raw.get("name", "model"), source, settings, rounds, None, 0.0, notes)
         result.reference = fitter.references(rounds[0].fit.ds).to_json()

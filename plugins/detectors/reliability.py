@@ -41,4 +41,12 @@ class UnreliableModel(Detector):
         )
         verdict = Judgement.fixed(significant, f"reliability check: {v.verdict}")
         extensions = ctx.extensions(self.cause, evidence) if significant else []
-        return self.finding(ctx, 1.0 if significant else 0.0, verdict, summary, evidence, extensions)
+        found = self.finding(ctx, 1.0 if significant else 0.0, verdict, summary, evidence, extensions)
+        if v.verdict == "inconclusive":
+            found.caveat = (
+                f"the reliability check over {settings.length} samples was inconclusive ("
+                + (v.unsettled[0] if v.unsettled else v.reasons[0] if v.reasons else "no verdict")
+                + "): check the model with `dynmodel reliability-check` before trusting its free runs from other "
+                "initial states"
+            )
+        return found
