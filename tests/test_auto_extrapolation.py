@@ -86,6 +86,7 @@ def test_a_test_input_beyond_the_training_range_gets_several_full_fits(tmp_path)
     # ... and the best survivors are all fitted in full when it leaves it: the choice is made among them
     assert _full(wide) - _second_chances(wide) == min(SURVIVORS, _screened(wide)) >= 2
     assert any("leave the training range" in why for why in wide["cautious"])
+    assert not any("about linear" in n for n in wide["notes"])  # a nonlinear system: the strict band stands
 
 
 def test_a_budget_that_allows_it_fits_every_candidate_screened_near_the_best_in_full(tmp_path):
@@ -107,3 +108,30 @@ def test_a_budget_that_allows_it_fits_every_candidate_screened_near_the_best_in_
     assert record["budget"]["planned"] < 0.5 * record["budget"]["allowance"]  # the budget was not the limit
     assert len(near) > SURVIVORS
     assert full == near < set(screened)  # the far ones (the linear model here) are not refitted
+
+
+def test_a_linear_system_driven_beyond_its_training_range_keeps_a_linear_model(tmp_path):
+    """A second-order linear plant tested at three times its training input amplitude: its output leaves the
+    training output range as far as its input does, so the strict band rejected every linear candidate, and the
+    search kept a saturating network at 2 % test NMSE. The linear reference validates as well as the best
+    candidate: the system is about linear, and the band widens with the input's excursion."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(16)
+    u = lfilter([0.6], [1, -0.4], rng.standard_normal(4000))
+    u /= u.std()
+    u[3200:] *= 3.0
+    y = lfilter([0.0, 0.25, 0.15], [1, -1.2, 0.52], u) + 0.005 * rng.standard_normal(4000)
+    write_csv(tmp_path / "d.csv", {"u": u, "y": y})
+    raw = {
+        "name": "linear-beyond",
+        "data": {"path": "d.csv", "input": ["u"], "output": ["y"]},
+        "model": {"family": "auto", "params": {"budget": 10}},
+        "seed": 0,
+    }
+    spec = validate_spec(raw, "<test>", tmp_path)
+    with search_options(workers=1):
+        model, _ = engine.fit_dataset(spec, load_dataset(spec))
+    assert model.search["context"]["excursion"] > 1.0  # the test input leaves the range by twice its width
+    assert any("the system is about linear" in n for n in model.search["notes"])
+    assert model.metrics["test"]["nmse"] < 0.01, (model.search["winner_summary"], model.metrics["test"])

@@ -42,7 +42,7 @@ from ..errors import DynmodelError
 from ..extensions import merge
 from ..family import Progress, no_progress
 from ..spec import IN_MEMORY
-from .checks import failed_split
+from .checks import failed_split, linear_band
 from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, REFERENCE_WORKERS, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
@@ -83,6 +83,9 @@ SECOND_CHANCES = 2
 GROW_FROM = 2
 #: training samples (the last ones) the inputs' dead times are read on (six inputs and outputs: about 1 s)
 DEAD_TIME_SAMPLES = 50000
+#: a linear reference within this factor of the best screening score shows a system about linear
+#: (:meth:`Search._decide_band`; the benchmarks' are 6 to 860 x behind)
+LINEAR_SYSTEM = 2.0
 #: rounds of diagnose's moves, and moves measured per round
 MOVE_ROUNDS = 2
 MOVES = 4
@@ -370,6 +373,7 @@ class Search:
         self.budget = Budget(float(self.params.budget))
         self.entries: dict[str, Entry] = {}
         self.references: list[TaskResult] = []
+        self.linear_band = False  # judge band checks under the linear-system band (:meth:`_decide_band`)
         self.kept: dict[str, Any] = {}  # task key -> ModelArrays
         self.notes: list[str] = []
         self.stages: list[dict[str, Any]] = []
@@ -559,6 +563,8 @@ class Search:
         entry = self.entries.get(cand_key)
         if entry is None:
             return
+        if self.linear_band:
+            r.checks = linear_band(r.checks)
         entry.results.setdefault(level, []).append(r)
         if r.model is not None:
             self.kept[r.key] = r.model
@@ -683,6 +689,36 @@ class Search:
         for e in entries:
             if "screen" not in e.summaries:
                 e.verdict = "not run (budget)"
+
+    def _decide_band(self) -> None:
+        """Judge the band checks under the linear-system band (:mod:`.checks`) from here on, and those made so far,
+        when an input leaves the training range and the linear reference validates within :data:`LINEAR_SYSTEM`
+        of the best screening score: the data then show a system about linear, whose output goes beyond its
+        training range as far as its input does (a linear thermal process heated to twice its training power:
+        the strict band rejected every linear model, 0.0008 % test NMSE, and kept a saturating network, 229 %).
+        Where the linear reference is far behind (EMPS: 53 x, Silverbox: 860 x), a nonlinear model's excursion
+        beyond the range is not vouched for, and the strict band stands (widened on EMPS, a NARX model with the
+        sign of the input went from 10.5 to 100 mm test RMSE)."""
+        reference = self._reference_score()
+        scores = [s.score for e in self.entries.values() for s in [e.summaries.get("screen")] if s and s.finite]
+        if reference is None or not scores or reference > LINEAR_SYSTEM * min(scores):
+            return
+        fits = [r for e in self.entries.values() for rs in e.results.values() for r in rs]
+        if not any("wide" in r.checks for r in fits):
+            return  # no input leaves the training range: both bands are the same
+        self.linear_band = True
+        for r in fits:
+            r.checks = linear_band(r.checks)
+        for e in self.entries.values():
+            for level, rs in e.results.items():
+                e.summaries[level] = summarize(sorted(rs, key=lambda x: x.key))  # type: ignore[assignment]
+            if e.reuse_screen and "final" in e.summaries:
+                e.summarize_final()
+        self.notes.append(
+            f"the linear reference validates within {LINEAR_SYSTEM:g} x of the best candidate (validation NMSE "
+            f"{reference:.3g} % against {min(scores):.3g} %), so the system is about linear: where an input leaves "
+            "the training range, a candidate's output may leave the training output range as far"
+        )
 
     def _stage_grow(self) -> None:
         ranked = [k for k in self.ranking("screen") if self._usable(k, "screen")][:GROW_FROM]
@@ -948,6 +984,8 @@ class Search:
             self.notes.append(f"{e.label} validated best but {s.failure}")
             return None
         r: TaskResult = results[0]  # type: ignore[assignment]
+        if self.linear_band:
+            r.checks = linear_band(r.checks)
         if not cancel_set and not r.checks.get("ok", False):
             e.verdict = f"rejected after its final fit: {failed_split(r.checks)}"
             s.failure = "failed its final fit's band check"
@@ -1005,6 +1043,7 @@ class Search:
         key = None
         try:
             self._stage_screen()
+            self._decide_band()
             if not self.interrupted:
                 self._stage_grow()
             surv = self.survivors() if not self.interrupted else []
