@@ -304,6 +304,11 @@ def test_decimal_commas(tmp_path):
     write_csv(tmp_path / "comma.csv", {"u": u, "y": y}, sep=",", decimal=",")
     with pytest.raises(DataError, match="decimal commas with comma separators"):
         read_columns(tmp_path / "comma.csv", ["u", "y"])
+    # quoted, a decimal comma is unambiguous beside comma separators (a spreadsheet's CSV export)
+    quoted = "".join(f'"{a!r}","{b!r}"\n'.replace(".", ",") for a, b in zip(u.tolist(), y.tolist()))
+    (tmp_path / "quoted.csv").write_text("u,y\n" + quoted)
+    with pytest.warns(DataNote, match="decimal commas read as decimal points"):
+        np.testing.assert_array_equal(read_columns(tmp_path / "quoted.csv", ["y"])["y"], y)
 
 
 def test_a_units_row_under_the_header_is_skipped_and_said(tmp_path):

@@ -245,7 +245,8 @@ def read_text(
             try:
                 out[key][row] = float(text)
             except ValueError:
-                if not decimal_comma and delim != "," and _DECIMAL_COMMA.match(text):
+                # a comma-separated file may hold decimal commas only in quoted cells (csv unquoted them)
+                if not decimal_comma and _DECIMAL_COMMA.match(text):
                     decimal_comma = True
                     warnings.warn(DataNote(f"{path}: decimal commas read as decimal points"), stacklevel=2)
                     try:
