@@ -180,7 +180,7 @@ def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
     table = Table(title=title, title_justify="left")
     table.add_column("split", min_width=max((len(k) for k in metrics), default=5))
     table.add_column("samples", justify="right")
-    shown = [k for k in ("nmse", "max", "rmse", "fit") if k in ("nmse", "max") or any(k in m for m in metrics.values())]
+    shown = [k for k in ("nmse", "max", "rmse", "fit") if k == "nmse" or any(k in m for m in metrics.values())]
     units = {m.get("rmse_units") for m in metrics.values()}
     rmse = f"RMSE ({units.pop()})" if len(units) == 1 and None not in units else "RMSE"
     for k in shown:

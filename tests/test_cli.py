@@ -133,6 +133,9 @@ def test_rmse_and_fit_metrics(cli, tmp_path):
     test = json.loads((tmp_path / "m.json").read_text())["metrics"]["test"]
     # fit = 100 (1 - RMSE / std) and NMSE = 100 RMSE^2 / var on the same samples
     assert test["fit"] == pytest.approx(100 * (1 - np.sqrt(test["nmse"] / 100)), rel=1e-9)
+    spec["evaluation"] = {"metrics": ["nmse", "rmse"]}  # MAX left out: no column of dashes
+    r = cli("fit", write_yaml(tmp_path / "s.yaml", spec), "--force", "-q")
+    assert r.exit_code == 0 and "RMSE" in r.stdout and "MAX" not in r.stdout and "fit %" not in r.stdout
 
 
 def test_fit_notes_a_test_input_beyond_the_training_range(cli, tmp_path, narx_csvs):
