@@ -134,6 +134,40 @@ def input_dependence(
     return float(np.mean(np.mean(diff**2, axis=0) / var))
 
 
+def input_nonlinearity(model: FittedModel, ds: Dataset, split: str | None = None) -> float | None:
+    """How far the free run is from affine in its input: with y(u) the run on the input, y(ū) with every input
+    held at its training mean and y(h) on the input halved about that mean (h = (u + ū) / 2, inside the range),
+    mean((y(h) - (y(u) + y(ū)) / 2)^2) / mean(((y(u) - y(ū)) / 2)^2) over the scored samples of ``split``
+    (default validation, else train), the worst output; 0 for a model linear (affine) in its input, from the same
+    start. None when it cannot be measured (a run diverges, the split is absent, the run ignores the input)."""
+    split = split or ("validation" if ds.ranges.get("validation") else "train")
+    warm = model.warmup
+    rows = ds.scored(split, warm)
+    if not rows:
+        return None
+    train_u, _ = ds.concat_inputs("train")
+    mean_u = train_u.mean(axis=0) if train_u.shape[0] else np.zeros(len(ds.input_names))
+    gap, half = [], []
+    for rec in sorted({r for r, _, _ in rows}):
+        r = ds.recordings[rec]
+        tune = r.y[:warm] if warm else None
+        full = model.run(r.u, tune)
+        held = model.run(np.broadcast_to(mean_u, r.u.shape).copy(), tune)
+        mid = model.run(0.5 * (r.u + mean_u), tune)
+        for rr, a, b in rows:
+            if rr != rec:
+                continue
+            if any(x.diverged_at is not None and x.diverged_at < b for x in (full, held, mid)):
+                return None
+            line = 0.5 * (full.y[a:b] + held.y[a:b])
+            gap.append(mid.y[a:b] - line)
+            half.append(0.5 * (full.y[a:b] - held.y[a:b]))
+    moved = np.mean(np.concatenate(half) ** 2, axis=0)
+    if not np.all(moved > 0) or not np.isfinite(moved).all():
+        return None
+    return float(np.max(np.mean(np.concatenate(gap) ** 2, axis=0) / moved))
+
+
 def assess(
     model: FittedModel, ds: Dataset | None = None, runs: list[Run] | None = None, metrics: Mapping | None = None
 ) -> list[Note]:

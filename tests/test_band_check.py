@@ -56,6 +56,20 @@ def test_a_brief_overshoot_passes_but_not_a_long_or_a_far_one(ds):
     assert _leaves(ds, y) == 1500
 
 
+def test_the_linear_system_band_admits_a_moving_run_not_one_held_at_a_clip(ds):
+    """Widened to where a linear reference's run goes (here [-0.49, 3.49]), the band admits a run that climbs
+    beyond the strict band, but not one standing still there for longer than BRIEF: held at an output clip."""
+    lo, hi, width = checks.band(ds)
+    low, high = lo, hi + 2.0 * width
+    climbing = np.linspace(0.5, 3.0, N)[:, None]
+    assert checks._leaves(climbing, lo, hi, width) is not None  # the strict band rejects it
+    assert checks._outside(climbing, low, high, lo, hi, width) is None
+    clipped = np.minimum(climbing, 1.5)  # held at a clip half a range beyond the training range
+    first = int(np.argmax(clipped[:, 0] >= 1.5))
+    assert checks._outside(clipped, low, high, lo, hi, width) == first + 1
+    assert checks._outside(clipped, lo, hi, lo, hi, width) == checks._leaves(clipped, lo, hi, width)
+
+
 class _KickedByItsStart:
     """A one-lag model y[t] = u[t] + e (0.5 + 10 |u[t] - u[t-1]| |e|), e = y[t-1] - u[t-1]: settled (e = 0) it
     follows its input; a state far from it decays while the input is held, and diverges while it moves."""

@@ -19,7 +19,7 @@ reference. Free runs that leave the training range widened by ten range widths c
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -253,3 +253,30 @@ def references(ds: Dataset) -> References:
         scored.append((lin.nmse.get(select, np.inf), lin.method != "ARX (least squares)", lin))
     chosen = min(scored, key=lambda x: (x[0], x[1]))[2]
     return References(mean_nmse, chosen, time.perf_counter() - t0)
+
+
+def linear_envelope(ds: Dataset) -> dict[str, tuple[list[float], list[float]]] | None:
+    """Per split, the range (low, high per output) of the linear reference's free run, for the search's
+    linear-system band (:mod:`dynmodel.search.checks`); None without a reference. Reads the outputs of the
+    training and validation splits only: the reference is estimated and chosen there, and a recording whose
+    start lies in neither (a test recording of its own) is run from rest, its past outputs at the training mean."""
+    fit_splits = [s for s in ("train", "validation") if ds.ranges.get(s)]
+    lin = references(replace(ds, ranges={s: ds.ranges[s] for s in fit_splits})).linear
+    if lin is None:
+        return None
+    d = _Data(ds)
+    measured = {r for s in fit_splits for r, a, _ in ds.ranges[s] if a == 0}
+    out: dict[str, tuple[list[float], list[float]]] = {}
+    runs = []
+    for i, (u, y) in enumerate(zip(d.u, d.y)):
+        start = y if i in measured else np.zeros_like(y)
+        cols = [_simulate(u, start, k, a, b, c, lin.warmup, d.lo, d.hi) for k, (a, b, c) in enumerate(lin.coef)]
+        runs.append(np.column_stack(cols) * d.y_sd + d.y_mu)
+    for split in ds.splits():
+        rows = ds.scored(split, warmup=lin.warmup)
+        if not rows:
+            continue
+        run = np.concatenate([runs[r][a:b] for r, a, b in rows])
+        if run.size and np.isfinite(run).all():  # a diverging reference vouches for nothing
+            out[split] = (run.min(axis=0).tolist(), run.max(axis=0).tolist())
+    return out

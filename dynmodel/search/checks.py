@@ -16,10 +16,12 @@ had rejected the NARX default (1.6 % test NMSE) for a two-sample overshoot of fo
 network with 18 %. Where a test input goes beyond the training input range, the band is not widened:
 forgiving a run there while that input lies beyond (EMPS: 58 %) let a NARX model drift to 143 mm test
 RMSE where the band kept one with 10.5 mm. Unless the system is about linear (the search decides, from the
-linear reference's validation error: ``Search._decide_band``): then the output of a split whose input leaves
-the training input range by a fraction e of its width may leave the training output range by e of its width
-too (the *linear-system band*, :data:`WIDEN`, given as ``checks["wide"]``). Without it, a linear plant tested at
-three times its training amplitude had every linear candidate rejected, and a saturating network kept.
+linear reference's validation error: ``Search._decide_band``): then a split's band also covers the range of
+the linear reference's own free run on that split's input, widened as the training range is (the
+*linear-system band*, given as ``checks["wide"]`` where it differs). A linear model's output goes beyond the
+training range as far as its input, or its drift (an integrator: a cart's position), takes it; without it, a
+linear plant tested at three times its training amplitude had every linear candidate rejected, and a
+saturating network kept.
 
 A recording that starts inside a test split starts as its evaluation will, as far as its inputs tell: from
 the measured outputs of its initialization window when the protocol declares one that covers the model's
@@ -62,9 +64,6 @@ BRIEF = 20
 STRAY = 0.01
 #: samples a settled start holds a test recording's first input for, before its first sample
 SETTLE = 200
-#: the *linear-system band* (``checks["wide"]``): where a split's input goes beyond the training input range
-#: by a fraction e of its width, the band widens by WIDEN x e output range widths on each side
-WIDEN = 1.0
 
 
 def band(ds: Dataset) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -102,6 +101,31 @@ def _leaves(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray, width: np.ndarray) 
     return None
 
 
+def _held(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray, width: np.ndarray) -> int | None:
+    """The first sample of a stretch of more than :data:`BRIEF` samples where the run ``seg`` stands still
+    beyond the strict band (lo, hi): held at an output clip (a linear system's run moves), or None."""
+    if len(seg) < 2:
+        return None
+    with np.errstate(invalid="ignore"):
+        still = (np.abs(np.diff(seg, axis=0)) <= 1e-12 * width).all(axis=1)
+        beyond = ((seg[1:] < lo) | (seg[1:] > hi)).any(axis=1)
+    held = np.asarray(still & beyond)
+    if _longest_run(held) <= BRIEF:
+        return None
+    return int(np.argmax(held)) + 1
+
+
+def _outside(seg: np.ndarray, low: np.ndarray, high: np.ndarray, lo: np.ndarray, hi: np.ndarray, width: np.ndarray):
+    """:func:`_leaves` the band (low, high); where that is wider than the strict band (lo, hi), also a run held
+    still beyond the strict band (:func:`_held`: at an output clip the wider band would hide)."""
+    first = _leaves(seg, low, high, width)
+    if (low < lo).any() or (high > hi).any():
+        held = _held(seg, lo, hi, width)
+        if held is not None and (first is None or held < first):
+            return held
+    return first
+
+
 def _fit_rows(ds: Dataset) -> set[tuple[int, int]]:
     """(recording, sample) starts that lie inside a training or validation range."""
     return {(r, a) for s in ("train", "validation") for r, a, _ in ds.ranges.get(s, [])}
@@ -135,16 +159,20 @@ def _run(model: FittedModel, rec: Any, start: np.ndarray | None, settle: int = 0
         return np.full_like(rec.y, np.nan)
 
 
-def band_checks(model: FittedModel, ds: Dataset) -> dict[str, Any]:
+def band_checks(model: FittedModel, ds: Dataset, envelope: dict[str, Any] | None = None) -> dict[str, Any]:
     """Per split: ``{"ok": bool, "start": how runs started, "sample": first sample outside the band or None,
-    "recording": its name}`` plus ``"ok"`` over all splits, and, when an input of a split leaves the training
-    input range, the same under the linear-system band as ``"wide"`` (see :func:`linear_band`). Runs every
+    "recording": its name}`` plus ``"ok"`` over all splits, and, where the linear reference's run (``envelope``:
+    per split, its low and high per output) leaves the band, the same under the linear-system band as
+    ``"wide"`` (see :func:`linear_band`). Runs every
     recording once, and again settled where a run from rest of a model that starts from measured outputs left
     the band (see the module docstring)."""
     lo, hi, width = band(ds)
-    beyond: dict[str, float] = {}
-    for e in ds.input_excursions(margin=0.0):
-        beyond[e["split"]] = max(beyond.get(e["split"], 0.0), float(e["excess"]))
+    margin = BAND * (1.0 - EDGE) * width
+    wider: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for split, (low, high) in (envelope or {}).items():  # the linear-system band: the reference's run, widened
+        low, high = np.minimum(lo, np.asarray(low) - margin), np.maximum(hi, np.asarray(high) + margin)
+        if (low < lo).any() or (high > hi).any():
+            wider[split] = (low, high)
     train_mean = np.nanmean(ds.concat_outputs("train"), axis=0)
     warm = model.warmup
     owner: dict[int, str] = {}
@@ -159,24 +187,23 @@ def band_checks(model: FittedModel, ds: Dataset) -> dict[str, Any]:
     out: dict[str, Any] = {"ok": True}
     wide: dict[str, Any] = {"ok": True}
     for split in ds.splits():
-        for target, widen in ((out, 0.0), (wide, WIDEN * beyond.get(split, 0.0))):
-            low, high = lo - widen * width, hi + widen * width
+        for target, (low, high) in ((out, (lo, hi)), (wide, wider.get(split, (lo, hi)))):
             entry: dict[str, Any] = {"ok": True, "sample": None, "recording": None, "start": None}
             for rec, a, b in ds.scored(split, warm):
                 y, how, outputs = runs[rec]
                 entry["start"] = entry["start"] or how
-                first = _leaves(y[a:b], low, high, width)
+                first = _outside(y[a:b], low, high, lo, hi, width)
                 if first is not None and how == "either":  # from rest it leaves: does it settled?
                     if rec not in settled:
                         settled[rec] = _run(model, ds.recordings[rec], outputs, SETTLE)
-                    if _leaves(settled[rec][a:b], low, high, width) is None:
+                    if _outside(settled[rec][a:b], low, high, lo, hi, width) is None:
                         first = None
                 if first is not None:
                     entry.update(ok=False, sample=a + first, recording=ds.recordings[rec].name)
                     break
             target[split] = entry
             target["ok"] = target["ok"] and entry["ok"]
-    if beyond:
+    if wider:
         out["wide"] = wide
     return out
 

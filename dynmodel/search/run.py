@@ -86,6 +86,9 @@ DEAD_TIME_SAMPLES = 50000
 #: a linear reference within this factor of the best screening score shows a system about linear
 #: (:meth:`Search._decide_band`; the benchmarks' are 6 to 860 x behind)
 LINEAR_SYSTEM = 2.0
+#: a candidate whose run is this close to affine in its input (:func:`dynmodel.usefulness.input_nonlinearity`)
+#: counts as a linear model there
+AFFINE = 1e-4
 #: rounds of diagnose's moves, and moves measured per round
 MOVE_ROUNDS = 2
 MOVES = 4
@@ -374,6 +377,7 @@ class Search:
         self.entries: dict[str, Entry] = {}
         self.references: list[TaskResult] = []
         self.linear_band = False  # judge band checks under the linear-system band (:meth:`_decide_band`)
+        self.envelope: dict[str, Any] | None = None  # the linear reference's run per split (:meth:`_envelope`)
         self.kept: dict[str, Any] = {}  # task key -> ModelArrays
         self.notes: list[str] = []
         self.stages: list[dict[str, Any]] = []
@@ -482,6 +486,7 @@ class Search:
             layout=layout,
             dataset=self.ds if self.in_memory else None,
             moves=MOVES,
+            envelope=self.envelope if kind == "fit" else None,
         )
 
     # ------------------------------------------------------------------ running a stage
@@ -690,22 +695,43 @@ class Search:
             if "screen" not in e.summaries:
                 e.verdict = "not run (budget)"
 
+    def _envelope(self) -> dict[str, Any] | None:
+        """The range of the linear reference's free run per split (inputs, and training and validation outputs
+        only), for the linear-system band; None when there is none."""
+        from ..diagnose.reference import linear_envelope
+
+        self.progress("search", 0.0, "the linear reference's free run (the band of an about linear system)")
+        try:
+            return linear_envelope(self.ds)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+            return None
+
     def _decide_band(self) -> None:
         """Judge the band checks under the linear-system band (:mod:`.checks`) from here on, and those made so far,
-        when an input leaves the training range and the linear reference validates within :data:`LINEAR_SYSTEM`
-        of the best screening score: the data then show a system about linear, whose output goes beyond its
-        training range as far as its input does (a linear thermal process heated to twice its training power:
-        the strict band rejected every linear model, 0.0008 % test NMSE, and kept a saturating network, 229 %).
+        when the linear reference, or a candidate whose run is affine in its input (:data:`AFFINE`), validates within
+        :data:`LINEAR_SYSTEM` of the best score so far (after screening, growing and the full fits): the data
+        then show a system about linear, whose output may go beyond its training range where the reference's
+        free run goes (a linear thermal process heated to twice its training power: the strict band rejected
+        every linear model, 0.0008 % test NMSE, and kept a saturating network, 229 %; a cart whose position
+        drifts beyond its training range, from a force inside its own).
         Where the linear reference is far behind (EMPS: 53 x, Silverbox: 860 x), a nonlinear model's excursion
         beyond the range is not vouched for, and the strict band stands (widened on EMPS, a NARX model with the
         sign of the input went from 10.5 to 100 mm test RMSE)."""
+        if self.linear_band:
+            return
+        screened = [s for e in self.entries.values() for s in e.summaries.values() if s and s.finite]
+        if not screened:
+            return
+        best = min(s.score for s in screened)
+        linear = [s.score for s in screened if s.nonlinearity is not None and s.nonlinearity < AFFINE]
         reference = self._reference_score()
-        scores = [s.score for e in self.entries.values() for s in [e.summaries.get("screen")] if s and s.finite]
-        if reference is None or not scores or reference > LINEAR_SYSTEM * min(scores):
+        # the linear reference, or a candidate whose run is affine in its input, validates about as the best
+        near = min([x for x in [reference, *linear] if x is not None], default=math.inf)
+        if near > LINEAR_SYSTEM * best:
             return
         fits = [r for e in self.entries.values() for rs in e.results.values() for r in rs]
         if not any("wide" in r.checks for r in fits):
-            return  # no input leaves the training range: both bands are the same
+            return  # the reference's run stays in the band: both bands are the same
         self.linear_band = True
         for r in fits:
             r.checks = linear_band(r.checks)
@@ -715,9 +741,10 @@ class Search:
             if e.reuse_screen and "final" in e.summaries:
                 e.summarize_final()
         self.notes.append(
-            f"the linear reference validates within {LINEAR_SYSTEM:g} x of the best candidate (validation NMSE "
-            f"{reference:.3g} % against {min(scores):.3g} %), so the system is about linear: where an input leaves "
-            "the training range, a candidate's output may leave the training output range as far"
+            f"a linear model validates within {LINEAR_SYSTEM:g} x of the best candidate (validation NMSE "
+            f"{near:.3g} % against {best:.3g} %), so the system is about linear: a candidate's output "
+            "may leave the training output range where the linear reference's free run does (an input beyond its "
+            "training range, a drift)"
         )
 
     def _stage_grow(self) -> None:
@@ -1042,13 +1069,16 @@ class Search:
         level = "screen"
         key = None
         try:
+            self.envelope = self._envelope()
             self._stage_screen()
             self._decide_band()
             if not self.interrupted:
                 self._stage_grow()
+            self._decide_band()
             surv = self.survivors() if not self.interrupted else []
             if not self.interrupted:
                 self._stage_full(surv)
+                self._decide_band()
             if not self.interrupted:
                 self._stage_moves()
         except KeyboardInterrupt:

@@ -70,6 +70,7 @@ class Summary:
     blocks: np.ndarray | None = None  # the median seed's score over validation blocks (:func:`block_scores`)
     blocks_on: tuple = ()  # the views (layouts) those blocks lie in: only blocks of the same views are compared
     continued: np.ndarray | None = None  # the same blocks of the continued run alone, where a fresh start was mixed in
+    nonlinearity: float | None = None  # how far from affine in its input (median over fits)
 
     @property
     def finite(self) -> bool:
@@ -80,6 +81,7 @@ class Summary:
             "score": self.score if self.finite else None,
             "band_ok": self.ok,
             "input_dependence": self.dependence,
+            "input_nonlinearity": self.nonlinearity,
             "complexity": self.complexity,
             "seeds": {str(k): (v if math.isfinite(v) else None) for k, v in self.seeds.items()},
             "median_seed": self.median_seed,
@@ -231,6 +233,7 @@ def summarize(results: list[Any]) -> Summary | None:
     ok = sum(ok_seeds.values()) * 2 >= len(ok_seeds) and (median is None or ok_seeds.get(median, False))
     chosen = by_seed.get(median, fits) if median is not None else fits
     deps = [r.dependence for r in fits if r.dependence is not None]
+    curved = [r.nonlinearity for r in fits if getattr(r, "nonlinearity", None) is not None]
     sizes = [r.complexity for r in fits if r.complexity is not None]
     failure = next((failed_split(r.checks) for r in chosen if failed_split(r.checks)), None)
     if failure is None and not ok:
@@ -258,6 +261,7 @@ def summarize(results: list[Any]) -> Summary | None:
         blocks=blocks,
         blocks_on=blocks_on,
         continued=continued,
+        nonlinearity=float(np.median(curved)) if curved else None,
     )
 
 

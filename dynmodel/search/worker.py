@@ -43,6 +43,8 @@ class Task(Variant):
     dataset: Any = None
     #: diagnose: extensions measured per round (the diagnosis' own limit)
     moves: int = 6
+    #: per split, the range of the linear reference's free run (the linear-system band, :mod:`.checks`)
+    envelope: dict[str, Any] | None = None
 
 
 @dataclass
@@ -52,7 +54,8 @@ class TaskResult(PointResult):
     ``score``: free-run NMSE (%, mean over outputs) on the view's validation split (the training split
     when the view has none); None when the run diverged there or the fit failed. ``checks``: the band
     checks per split (:func:`.checks.band_checks`). ``dependence``: input dependence on the view's
-    validation split. ``complexity``: the fitted model's size. ``proposals``: diagnose tasks' moves as
+    validation split; ``nonlinearity``: how far from affine in its input the run is there
+    (:func:`dynmodel.usefulness.input_nonlinearity`). ``complexity``: the fitted model's size. ``proposals``: diagnose tasks' moves as
     ``{"cause", "summary", "patch"}``. ``reference``: reference tasks' figures.
     ``moments``: sums over the view's validation samples that let folds be pooled into one score (``n``, per
     output ``sse``, ``sum``, ``sumsq`` of the measured output)."""
@@ -62,6 +65,7 @@ class TaskResult(PointResult):
     score: float | None = None
     checks: dict[str, Any] = field(default_factory=dict)
     dependence: float | None = None
+    nonlinearity: float | None = None
     complexity: float | None = None
     proposals: list[dict[str, Any]] = field(default_factory=list)
     reference: dict[str, Any] | None = None
@@ -76,6 +80,7 @@ class TaskResult(PointResult):
             score=self.score,
             checks=self.checks,
             dependence=self.dependence,
+            nonlinearity=self.nonlinearity,
             complexity=self.complexity,
         )
         if self.proposals:
@@ -216,7 +221,7 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any, continued: Any = No
 
 def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
     from .. import engine, protocol
-    from ..usefulness import input_dependence
+    from ..usefulness import input_dependence, input_nonlinearity
     from .checks import band_checks, complexity
     from .select import moment_score
 
@@ -243,11 +248,15 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
     result.moments = None if errors is None else validation_moments(v, *errors, continued)
     if fresh is not None and result.moments is not None:  # the score with the fresh start mixed in
         result.score = moment_score([result])
-    result.checks = band_checks(model, ds)
+    result.checks = band_checks(model, ds, task.envelope)
     try:
         result.dependence = None if bad else input_dependence(model, v, runs=runs)
     except (ValueError, FloatingPointError):
         result.dependence = None
+    try:
+        result.nonlinearity = None if bad else input_nonlinearity(model, v)
+    except (ValueError, FloatingPointError):
+        result.nonlinearity = None
     result.complexity = complexity(model)
     info = getattr(model.family, "selection_", None)
     if isinstance(info, dict):
