@@ -5,6 +5,7 @@ non-uniformly sampled files."""
 from __future__ import annotations
 
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ import dynmodel
 from dynmodel.data import load_dataset
 from dynmodel.data.derived import channel_name, reversals, time_matrix
 from dynmodel.errors import DataError, SpecError
+from dynmodel.textfiles import DataNote
 
 
 def test_reversals_of_a_triangle_with_noise_and_a_deadband():
@@ -212,6 +214,20 @@ def test_a_time_column_named_in_milliseconds_needs_its_unit(tmp_path, column, un
         make_spec(raw, tmp_path)
     make_spec({**raw, "data": {**raw["data"], "time_unit": 1}}, tmp_path)  # said explicitly: seconds
     make_spec({**raw, "data": {**raw["data"], "time_column": "t"}}, tmp_path)
+
+
+def test_a_time_column_the_spec_does_not_use_is_noted(tmp_path):
+    """A file with a column t in steps of 0.1 s, and no time_column: the sampling time silently stayed 1 s."""
+    u = np.sin(np.arange(300) * 0.1)
+    write_csv(tmp_path / "d.csv", {"t": np.arange(300) * 0.1, "u": u, "y": np.roll(u, 1)})
+    raw = {"data": {"path": "d.csv", "input": ["u"], "output": ["y"]}, "model": {"family": "narx"}}
+    with pytest.warns(DataNote, match=r"the column 't' steps by 0.1 but data.time_column is not set.*time_column: t"):
+        assert load_dataset(make_spec(raw, tmp_path)).sampling_time == 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataNote)
+        named = load_dataset(make_spec({**raw, "data": {**raw["data"], "time_column": "t"}}, tmp_path))
+        assert named.sampling_time == pytest.approx(0.1)
+        load_dataset(make_spec({**raw, "data": {**raw["data"], "sampling_time": 0.1}}, tmp_path))
 
 
 def test_validate_cli_shows_the_resampled_data(cli, tmp_path):

@@ -528,7 +528,54 @@ def _load_source(src: dict[str, Any], resolve, where: str, missing_outputs: bool
                 "remove sampling_time (the time column gives it)",
             )
         st = step
+    elif st is None and not missing_outputs:
+        _unused_time_column(src, resolve)
     return recs, float(st or 1.0), [str(s) for s in src["input"]], [str(s) for s in src["output"]]
+
+
+#: column names read as time stamps when the spec names none (as dynmodel predict does)
+TIME_NAMES = ("t", "time", "time_s", "t_s", "zeit")
+
+
+def _unused_time_column(src: dict[str, Any], resolve) -> None:
+    """Note a column named as time (t, time, ...) with uniform steps other than 1 s that the spec does not use: the
+    sampling time then stays 1 s (plots, times in seconds, predict's check of a new file's time column)."""
+    import warnings
+
+    from ..textfiles import DataNote
+    from .readers import list_columns
+
+    first = src["path"][0] if isinstance(src["path"], list) else src["path"]
+    if not isinstance(first, str):
+        return
+    opts = {"header": bool(src.get("header", True)), "delimiter": src.get("delimiter")}
+    try:
+        path = resolve(first)
+        names = list(src.get("columns") or list_columns(path, **opts))
+    except (DataError, SpecError, OSError, ValueError):
+        return
+    lower = {n.lower(): n for n in names if n not in [str(c) for c in src["input"] + src["output"]]}
+    name = next((lower[c] for c in TIME_NAMES if c in lower), None)
+    if name is None:
+        return
+    try:
+        t = read_columns(path, [name], columns=src.get("columns"), **opts)[name]
+    except (DataError, OSError, ValueError):
+        return
+    steps = np.diff(t)
+    if len(steps) < 2 or not np.isfinite(steps).all():
+        return
+    step = float(np.median(steps))
+    uniform = step > 0 and float(np.max(np.abs(steps - step))) <= resample.UNIFORM_TOLERANCE * step
+    if uniform and abs(step - 1.0) > resample.UNIFORM_TOLERANCE:
+        warnings.warn(
+            DataNote(
+                f"{path.name}: the column '{name}' steps by {step:.6g} but data.time_column is not set, so the "
+                f"sampling time is 1 s per sample (plots, times in seconds, predict's check of a new file's time "
+                f"column); add time_column: {name} (and time_unit if it is not in seconds)"
+            ),
+            stacklevel=2,
+        )
 
 
 def _split_bounds(split: dict[str, Any], n: int) -> dict[str, tuple[int, int]]:
