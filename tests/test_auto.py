@@ -75,7 +75,11 @@ def _comparable(record: dict[str, Any]) -> list[tuple]:
     for c in record["candidates"]:
         levels = {k: (v["score"], v["band_ok"], v["median_seed"], v["fits"]) for k, v in c["levels"].items()}
         rows.append((c["key"], c["verdict"], json.dumps(levels, sort_keys=True)))
-    return rows + [("winner", record["winner"], json.dumps(record["budget"], sort_keys=True))]
+    reference = {k: v for k, v in (record["reference"] or {}).items() if k != "seconds"}
+    return rows + [
+        ("winner", record["winner"], json.dumps(record["budget"], sort_keys=True)),
+        ("reference", json.dumps(reference, sort_keys=True), json.dumps(record["notes"])),
+    ]
 
 
 # ------------------------------------------------------------------------------------ the spec

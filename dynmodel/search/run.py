@@ -1134,7 +1134,8 @@ class Search:
                     f"{', '.join(families)}; the data may not determine the output from the input (check the "
                     "input and output columns, the sampling, a dead time), or need more data"
                 )
-        ref = self.references[0].reference if self.references else None
+        # the first layout's (not the first to finish: that depends on the executor and its timing)
+        ref = min(self.references, key=lambda r: r.key).reference if self.references else None
         return {
             "version": 1,
             "spec": {"model": {"family": "auto", "params": self.params.model_dump(mode="json")}},
