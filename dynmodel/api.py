@@ -183,7 +183,7 @@ def warn_if_useless(model: FittedModel, ds: Dataset, runs: list[Run]) -> None:
     model.assessment = notes
     cost = model.spec.get("cost")
     lines = [f"{n.text}: {stability_fix(model.family.stability_hint, cost)}" for n in notes if n.kind == "diverged"]
-    line = summary_line(notes, cost=cost, searched=model.search is not None, python=True)
+    line = summary_line(notes, cost=cost, searched=model.search or False, python=True)
     if line:
         lines.append(line)
     for text in lines:

@@ -274,11 +274,42 @@ def _auto_available() -> bool:
     return True
 
 
+def _rejected_on_test(record: Any) -> str | None:
+    """When the search rejected candidates that validated better than its choice because their free run left the
+    output band on a test input: what to try instead (else None)."""
+    if not isinstance(record, Mapping):
+        return None
+    rows = record.get("candidates") or []
+    chosen = next((c for c in rows if c.get("verdict") == "chosen"), None)
+    score = (chosen or {}).get("validation_nmse")
+    if score is None:
+        return None
+    better = [
+        c
+        for c in rows
+        if str(c.get("verdict", "")).startswith("rejected: leaves the output band on the test")
+        and c.get("validation_nmse") is not None
+        and c["validation_nmse"] < score
+    ]
+    if not better:
+        return None
+    best = min(better, key=lambda c: c["validation_nmse"])
+    return (
+        f"{len(better)} candidate(s) that validated better were rejected because their free run leaves the training "
+        f"output range on the test input (best: {best.get('family')}: {best.get('summary')}, validation NMSE "
+        f"{best['validation_nmse']:.3g} %): if the test truly takes the output beyond the training range, fit that "
+        "one directly (its parameters are in the search record), or record training data that cover the test's range"
+    )
+
+
 def what_to_try(
-    spec_path: str | None = None, cost: str | None = None, searched: bool = False, python: bool = False
+    spec_path: str | None = None, cost: str | None = None, searched: Any = False, python: bool = False
 ) -> str:
-    """The usual next steps for a useless model (``searched``: it came from ``family: auto`` already;
-    ``python``: fitted with the Python API on arrays, so the steps are said as Python calls)."""
+    """The usual next steps for a useless model (``searched``: it came from ``family: auto`` already, true or its
+    search record; ``python``: fitted with the Python API on arrays, so the steps are said as Python calls)."""
+    rejected = _rejected_on_test(searched)
+    if rejected is not None:
+        return rejected
     if python:
         steps = ["cost='mse_inf'"] if cost is not None and cost != "mse_inf" else []
         if searched:
@@ -310,7 +341,7 @@ def summary_line(
     notes: list[Note],
     spec_path: str | None = None,
     cost: str | None = None,
-    searched: bool = False,
+    searched: Any = False,
     python: bool = False,
 ) -> str | None:
     """One line for the user: every finding but divergence (reported as an error of its own). A model that
@@ -328,7 +359,7 @@ def summary_line(
 
 
 def _useless_line(
-    notes: list[Note], spec_path: str | None, cost: str | None, searched: bool, python: bool = False
+    notes: list[Note], spec_path: str | None, cost: str | None, searched: Any, python: bool = False
 ) -> str | None:
     poor = [n for n in notes if n.kind == "poor"]
     parts = []

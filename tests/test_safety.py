@@ -417,6 +417,27 @@ def test_usefulness_of_a_good_and_of_a_useless_model(fitted, folder):
     assert "cost: mse_inf" in line and "cost: mse_inf" not in summary_line(notes, "s.yaml", "mse_inf")
 
 
+def test_a_poor_auto_model_names_the_better_candidates_the_test_band_rejected():
+    """Advice to raise the budget was wrong where the search had better-validating candidates and rejected them
+    because their run left the output band on the test input: the user is told which, and what to do."""
+    from dynmodel.usefulness import Note, what_to_try
+
+    band = "rejected: leaves the output band on the test input at sample 3896"
+    record = {
+        "candidates": [
+            {"family": "esn", "summary": "internal, 200 elements", "validation_nmse": 27.2, "verdict": "chosen"},
+            {"family": "narx", "summary": "the default", "validation_nmse": 1.7e-7, "verdict": band},
+            {"family": "narx", "summary": "linear", "validation_nmse": 2e-7, "verdict": band},
+            {"family": "arx", "summary": "output error", "validation_nmse": 370.0, "verdict": band},
+        ]
+    }
+    advice = what_to_try("s.yaml", "mse_inf", record)
+    assert advice.startswith("2 candidate(s) that validated better were rejected") and "narx: the default" in advice
+    notes = [Note("poor", "test", "its free-run NMSE is 587 % on test", 587.0)]
+    assert "2 candidate(s) that validated better" in summary_line(notes, "s.yaml", "mse_inf", record)
+    assert "larger search budget" in what_to_try("s.yaml", "mse_inf", {"candidates": record["candidates"][:1]})
+
+
 def test_one_useless_output_of_two_is_named(tmp_path):
     """A model with one good output and one that is noise unrelated to the input: the mean over outputs
     (about 55 %) stays under the 90 % line, so the useless output must be judged on its own."""

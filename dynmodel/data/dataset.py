@@ -548,7 +548,7 @@ def _unused_time_column(src: dict[str, Any], resolve) -> None:
     first = src["path"][0] if isinstance(src["path"], list) else src["path"]
     if not isinstance(first, str):
         return
-    opts = {"header": bool(src.get("header", True)), "delimiter": src.get("delimiter")}
+    opts: dict[str, Any] = {"header": bool(src.get("header", True)), "delimiter": src.get("delimiter")}
     try:
         path = resolve(first)
         names = list(src.get("columns") or list_columns(path, **opts))
