@@ -6,7 +6,9 @@ move from a weighted registry and applies it to a copy of the current state; the
 ``scale = T / T0`` so that its step variance is ``(T / T0)^2``. A better candidate is always
 accepted; a worse one with probability ``exp(delta / T)``, where ``delta`` is the relative change
 of the objective ``(old - new) / old`` (eq. 5.57, negative for a worse candidate). The best state
-seen is kept; Ctrl-C stops the run and returns it.
+seen is kept; Ctrl-C stops the run and returns it, except in a batch (a sweep's point, a candidate of
+``family: auto``, see :func:`interrupts_propagate`), where the interrupt must stop the whole batch: there
+it propagates. :func:`watch_interrupts` tells a caller (``dynmodel fit``) that a run was cut short.
 """
 
 from __future__ import annotations
@@ -14,8 +16,10 @@ from __future__ import annotations
 import math
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
@@ -25,6 +29,55 @@ S = TypeVar("S")
 
 #: a move: (state, rng, scale) -> new state (or None when the move does not apply to this state)
 Move = Callable[[S, np.random.Generator, float], "S | None"]
+
+
+#: inside a batch (a sweep point, an auto-search candidate run in this process): Ctrl-C propagates
+_PROPAGATE: ContextVar[bool] = ContextVar("dynmodel_anneal_propagate", default=False)
+#: the watches of :func:`watch_interrupts` active in this context
+_WATCHES: ContextVar[tuple[InterruptWatch, ...]] = ContextVar("dynmodel_anneal_watches", default=())
+
+
+@contextmanager
+def interrupts_propagate() -> Iterator[None]:
+    """Inside: a Ctrl-C (KeyboardInterrupt, also SIGTERM turned into one) during an annealing is not turned
+    into "keep the best state so far" but raised, so that the batch running this fit stops (a sweep does
+    not record the cut-short point as finished, an auto search stops and keeps its best candidate)."""
+    token = _PROPAGATE.set(True)
+    try:
+        yield
+    finally:
+        _PROPAGATE.reset(token)
+
+
+def propagating() -> bool:
+    """Does a Ctrl-C during an annealing propagate here (see :func:`interrupts_propagate`)?"""
+    return _PROPAGATE.get()
+
+
+@dataclass
+class InterruptWatch:
+    """What :func:`watch_interrupts` saw: ``interrupted`` is the KeyboardInterrupt (or its subclass, e.g.
+    a SIGTERM) that cut an annealing short and was kept as "the best state so far", else None."""
+
+    interrupted: BaseException | None = None
+
+
+@contextmanager
+def watch_interrupts() -> Iterator[InterruptWatch]:
+    """Record whether an annealing in this block was cut short by Ctrl-C (and returned its best state)."""
+    watch = InterruptWatch()
+    token = _WATCHES.set(_WATCHES.get() + (watch,))
+    try:
+        yield watch
+    finally:
+        _WATCHES.reset(token)
+
+
+def _swallowed(exc: BaseException) -> None:
+    """An interrupt was turned into "return the best so far": tell the watches."""
+    for watch in _WATCHES.get():
+        if watch.interrupted is None:
+            watch.interrupted = exc
 
 
 @dataclass
@@ -111,8 +164,11 @@ def anneal(
             if stop is not None and stop(step, best_score):
                 break
             temperature *= a
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        if propagating():
+            raise
         interrupted = True
+        _swallowed(exc)
     return AnnealResult(best, best_score, history, interrupted)
 
 
@@ -128,13 +184,20 @@ def run_restarts(
     """Run ``search(k, rng_k, halt)`` for k = 0 .. restarts-1 with independent random streams,
     in up to ``workers`` threads (0: one per core); compiled kernels release the GIL. Results do
     not depend on the number of threads. Ctrl-C sets ``halt``: every run should then stop and
-    return its best state so far."""
+    return its best state so far (then the interrupt is raised again in a batch, see
+    :func:`interrupts_propagate`)."""
     seeds = rng.spawn(restarts)
     halt = threading.Event()
     n = min(restarts, workers or os.cpu_count() or 1)
     if n <= 1:
+        results: list[R] = []
         try:
-            return [search(k, seeds[k], halt) for k in range(restarts)]
+            with watch_interrupts() as seen:
+                for k in range(restarts):
+                    if seen.interrupted is not None:
+                        halt.set()  # the runs still to come stop at once: Ctrl-C ends the whole annealing
+                    results.append(search(k, seeds[k], halt))
+            return results
         except KeyboardInterrupt:
             halt.set()
             raise
@@ -142,6 +205,10 @@ def run_restarts(
         futures = [pool.submit(search, k, seeds[k], halt) for k in range(restarts)]
         try:
             return [f.result() for f in futures]
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
             halt.set()
-            return [f.result() for f in futures]
+            results = [f.result() for f in futures]
+            if propagating():
+                raise
+            _swallowed(exc)
+            return results

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from .errors import DynmodelError
+from .errors import DynmodelError, Interrupted
 
 if TYPE_CHECKING:
     from .data.dataset import Dataset
@@ -241,8 +241,10 @@ def fit_point(variant: Variant, keep_model: bool = False) -> PointResult:
     seed = variant.raw.get("seed") if isinstance(variant.raw.get("seed"), int) else None
     load_seconds = 0.0
     caught: list[warnings.WarningMessage] = []
+    from .anneal import interrupts_propagate
+
     try:
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True) as caught, interrupts_propagate():
             warnings.simplefilter("always")
             from . import engine
             from .spec import validate_spec
@@ -251,6 +253,8 @@ def fit_point(variant: Variant, keep_model: bool = False) -> PointResult:
             seed = int(spec.seed)
             ds, load_seconds = cached_dataset(spec)
             model, _ = engine.fit_dataset(spec, ds)
+            if _cut_short(model):  # a family: auto point whose search caught the Ctrl-C: not a finished point
+                raise KeyboardInterrupt("the point's search was interrupted")
         bad = model.unstable
         status: Status = "diverged" if bad else "ok"
         message = None
@@ -261,6 +265,8 @@ def fit_point(variant: Variant, keep_model: bool = False) -> PointResult:
             )
         payload = ModelArrays.from_model(model) if keep_model else None
         metrics = model.metrics
+    except Interrupted as exc:  # the user stopped it (a search with nothing to keep): stop the batch too
+        raise KeyboardInterrupt(exc.line()) from None
     except Exception as exc:  # recorded, never raised: one point must not stop the others
         status, message, metrics, payload = "error", _one_line(exc), {}, None
     texts = list(dict.fromkeys(str(w.message).split("\n")[0] for w in caught))
@@ -280,6 +286,13 @@ def fit_point(variant: Variant, keep_model: bool = False) -> PointResult:
 
 
 # ---------------------------------------------------------------- in the parent
+
+
+def _cut_short(model) -> bool:
+    """Was the fit of ``model`` stopped by the user (a ``family: auto`` search interrupted with Ctrl-C keeps its
+    best candidate so far; its safety limit is no interruption)?"""
+    search = getattr(model, "search", None)
+    return bool(isinstance(search, dict) and search.get("interrupted") and not search.get("safety_limit"))
 
 
 def _is_killed_worker(exc: BaseException) -> bool:

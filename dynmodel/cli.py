@@ -8,8 +8,10 @@ free run); ``--debug`` shows tracebacks.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import sys
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Optional
@@ -21,7 +23,7 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from . import __version__
-from .errors import EXIT_INTERNAL
+from .errors import EXIT_INTERNAL, EXIT_TERMINATED, Interrupted, Terminated, how_interrupted
 
 
 class _OneLineErrors(TyperGroup):
@@ -136,7 +138,7 @@ def handled(fn: Callable) -> Callable:
 
         from .explain import explain, internal_error_line
 
-        with warnings.catch_warnings(record=True) as caught:  # the default filters stay in force
+        with warnings.catch_warnings(record=True) as caught, _sigterm_as_interrupt():  # default filters in force
             try:
                 result = fn(*args, **kwargs)
             except (typer.Exit, typer.Abort, SystemExit):
@@ -151,12 +153,48 @@ def handled(fn: Callable) -> Callable:
                 if mapped is None:
                     err.print(internal_error_line(exc), markup=False)
                     raise typer.Exit(EXIT_INTERNAL) from None
-                err.print(f"error: {mapped.line()}", markup=False)
-                raise typer.Exit(mapped.exit_code) from None
+                line, code = mapped.line(), mapped.exit_code
+                if _state.get("terminated") and isinstance(mapped, Interrupted):  # say what stopped it
+                    line, code = _as_sigterm(line), EXIT_TERMINATED
+                err.print(f"error: {line}", markup=False)
+                raise typer.Exit(code) from None
         _show_warnings(caught)
         return result
 
     return wrapper
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM (``timeout``, SLURM, ``docker stop``) handled like Ctrl-C: raised in the main thread as
+    :class:`~dynmodel.errors.Terminated` (a KeyboardInterrupt), so that worker processes are stopped, a sweep's
+    finished points are kept and the command ends with one line; exit 143. Left alone when SIGTERM is
+    ignored, or outside the main thread."""
+    import signal
+
+    _state["terminated"] = False
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.getsignal(signal.SIGTERM)
+    if previous == signal.SIG_IGN:
+        yield
+        return
+
+    def terminate(signum, frame):
+        _state["terminated"] = True
+        raise Terminated()
+
+    signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
+
+
+def _as_sigterm(line: str) -> str:
+    """An interruption's line, when SIGTERM (not Ctrl-C) stopped the command."""
+    return line.replace("interrupted (Ctrl-C)", "terminated (SIGTERM)").replace("Ctrl-C", "SIGTERM")
 
 
 def _show_warnings(caught) -> None:
@@ -561,12 +599,15 @@ def sweep_cmd(
             if done
             else "no point"
         )
+        how, code = how_interrupted(exc)
+        if _state.get("terminated"):
+            how, code = "SIGTERM", EXIT_TERMINATED
         err.print(
-            f"interrupted: {counts} finished, kept in {getattr(exc, 'folder', out_dir)}; "
-            "run the same command with --resume to finish",
+            f"{'terminated (SIGTERM)' if how == 'SIGTERM' else 'interrupted'}: {counts} finished, kept in "
+            f"{getattr(exc, 'folder', out_dir)}; run the same command with --resume to finish",
             markup=False,
         )
-        raise typer.Exit(130) from None
+        raise typer.Exit(code) from None
     _print_sweep(result)
 
 

@@ -10,6 +10,8 @@ EXIT_OK = 0
 EXIT_CHECK_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130  # Ctrl-C (SIGINT): 128 + 2
+EXIT_TERMINATED = 143  # SIGTERM (timeout, SLURM, docker stop): 128 + 15
 
 
 class DynmodelError(Exception):
@@ -66,7 +68,23 @@ class OutputError(DynmodelError):
 class Interrupted(DynmodelError):
     """The user stopped the command (Ctrl-C)."""
 
-    exit_code = 130
+    exit_code = EXIT_INTERRUPTED
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (sent by ``timeout``, SLURM, ``docker stop``), raised in the main thread as a KeyboardInterrupt
+    subclass so that every clean-up of a Ctrl-C runs (workers stopped, finished sweep points kept); the
+    command then exits 143 (:func:`how_interrupted`)."""
+
+    def __init__(self, message: str = "terminated (SIGTERM)"):
+        super().__init__(message)
+
+
+def how_interrupted(exc: BaseException | None) -> tuple[str, int]:
+    """("Ctrl-C", 130) for a KeyboardInterrupt, ("SIGTERM", 143) for :class:`Terminated`."""
+    if isinstance(exc, Terminated):
+        return "SIGTERM", EXIT_TERMINATED
+    return "Ctrl-C", EXIT_INTERRUPTED
 
 
 class ModelWarning(UserWarning):

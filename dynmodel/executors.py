@@ -179,7 +179,9 @@ def _sigint_ignored():
 
 class InProcessExecutor(Executor):
     """Runs each task at ``submit``, in the calling thread: no pickling, tracebacks as usual, the
-    parent's loaded data reused. KeyboardInterrupt propagates from ``submit``."""
+    parent's loaded data reused. KeyboardInterrupt propagates from ``submit``, also out of an annealing,
+    which would otherwise keep its best state so far and return (:func:`dynmodel.anneal.interrupts_propagate`):
+    a Ctrl-C stops the batch, never only the task that happens to run."""
 
     kind = "in-process"
     slots = 1
@@ -196,8 +198,11 @@ class InProcessExecutor(Executor):
             raise RuntimeError("cannot schedule new futures after shutdown")
         future: Future = Future()
         future.set_running_or_notify_cancel()
+        from .anneal import interrupts_propagate
+
         try:
-            result = fn(*args, **kwargs)
+            with interrupts_propagate():
+                result = fn(*args, **kwargs)
         except Exception as exc:  # KeyboardInterrupt and SystemExit propagate
             future.set_exception(exc)
         else:

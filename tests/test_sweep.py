@@ -279,6 +279,33 @@ def test_an_output_folder_holding_another_sweep_is_left_alone(tmp_path, spec_fil
     assert _snapshot(out) == before and (tmp_path / "other" / "notes.txt").read_text() == "mine"
 
 
+def test_sweep_files_get_the_umask_like_every_other_output(tmp_path, spec_file):
+    """sweep.json, results, points and specs are 0666 minus the umask (they were the 0600 of a temporary file)."""
+    write_yaml(tmp_path / "g.yaml", {"model.params.size": [10, 20]})
+    out = tmp_path / "out"
+    previous = os.umask(0o002)
+    try:
+        r = run_cli("sweep", spec_file, "--grid", tmp_path / "g.yaml", "--workers", 1, "--out", out, "-q")
+    finally:
+        os.umask(previous)
+    assert r.exit_code == 0, r.stderr
+    modes = {str(p.relative_to(out)): p.stat().st_mode & 0o777 for p in out.rglob("*") if p.is_file()}
+    assert {"sweep.json", "results.csv", "results.json", "points/p0000.json", "specs/p0001.yaml"} <= set(modes)
+    assert set(modes.values()) == {0o664}, modes
+
+
+def test_an_output_folder_that_cannot_be_written_is_refused_before_the_data(tmp_path):
+    """As fit refuses an --out it cannot write, before loading anything (the data file here does not exist:
+    its error would come first if the data were read before the folder was checked)."""
+    raw = tiny()
+    raw["data"] = {"path": "missing.csv", "input": ["u"], "output": ["y"], "split": {"train": 0.7, "validation": 0.3}}
+    spec = write_yaml(tmp_path / "spec.yaml", raw)
+    write_yaml(tmp_path / "g.yaml", {"model.params.size": [10]})
+    for out, reason in (("/proc/dynmodel-sweep", "/proc"), ("/sys/dynmodel-sweep", "/sys")):
+        line = one_line_error(run_cli("sweep", spec, "--grid", tmp_path / "g.yaml", "--workers", 1, "--out", out))
+        assert line.startswith(f"error: {out}: cannot create files in '{reason}'") and "--out" in line, line
+
+
 def test_the_data_a_sweep_reads_never_takes_its_json(tmp_path):
     """--json onto the spec's data file is refused even with --force (it replaced the training data)."""
     from conftest import narx as narx_data

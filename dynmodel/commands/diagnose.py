@@ -33,7 +33,7 @@ def diagnose_spec_file(
     the gain measured on the held-out test split; the report folder (default ``<name>-diagnosis`` next to the
     spec) and ``json_path`` are checked before any work."""
     from ..diagnose import diagnose
-    from ..diagnose.report import write_extended, write_json, write_report
+    from ..diagnose.report import write_json, write_report_folder
     from ..paths import check_outputs, safe_name, spec_inputs
     from ..spec import load_spec, parse_yaml, read_spec_text
 
@@ -46,8 +46,7 @@ def diagnose_spec_file(
     raw.setdefault("name", spec_file.stem)
     result = diagnose(raw, str(spec_file), spec_file.resolve().parent, settings or Settings(), progress)
     progress("report", None, str(folder))
-    index = write_report(result, folder)
-    extended = write_extended(result, folder)
+    index, extended = write_report_folder(result, folder)  # a temporary sibling renamed into place at the end
     if json_file is not None:
         write_json(result, json_file)
     return DiagnoseResult(result, folder, index, extended, json_file)

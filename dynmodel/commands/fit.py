@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..errors import DynmodelError, FreeRunDiverged, Interrupted
+from ..errors import DynmodelError, FreeRunDiverged, Interrupted, how_interrupted
 from ..family import Family, Progress, no_progress
 from ..model import FittedModel, Run
 from ..spec import Spec
@@ -33,6 +33,8 @@ class FitResult:
     spec_file: str
     json_path: Path | None = None
     plot_path: Path | None = None
+    #: the Ctrl-C (or SIGTERM) that cut the family's annealing short; the model keeps its best network so far
+    interruption: BaseException | None = None
 
     @property
     def family_label(self) -> str:
@@ -73,12 +75,14 @@ class FitResult:
     def to_json(self) -> dict[str, Any]:
         """The ``--json`` payload: metrics, model file, usefulness assessment and its one line, the notes on
         the data (and the search record)."""
+        cut = self.interrupted()
         payload: dict[str, Any] = {
             "metrics": self.model.metrics,
             "model": str(self.path),
             "assessment": [n.to_json() for n in self.notes],
             "warning": self.warning(),
-            "notes": self.data_notes(),
+            "notes": ([cut] if cut else []) + self.data_notes(),
+            "interrupted": cut,
         }
         if self.model.search is not None:
             payload["search"] = self.model.search
@@ -89,6 +93,11 @@ class FitResult:
         or the free run diverged (exit 1; the model was saved all the same); None when the fit is sound."""
         from ..usefulness import stability_fix
 
+        cut = self.interrupted()
+        if cut is not None:
+            error = Interrupted(cut, self.spec_file, "rerun it without interrupting to anneal the full schedule")
+            error.exit_code = how_interrupted(self.interruption)[1]
+            return error
         search = self.model.search
         if search is not None and search.get("interrupted") and not search.get("safety_limit"):  # a note says so
             return Interrupted(
@@ -107,11 +116,22 @@ class FitResult:
             )
         return None
 
+    def interrupted(self) -> str | None:
+        """The line saying that the fit was cut short (Ctrl-C or SIGTERM during an annealing) and what was kept,
+        None when it ran to the end."""
+        if self.interruption is None:
+            return None
+        how = how_interrupted(self.interruption)[0]
+        return (
+            f"the annealing was interrupted ({how}): kept the best network found so far, not the result of the full "
+            f"schedule, written to {self.path}"
+        )
+
     def warning(self) -> str | None:
         """One line when the model is worse than a trivial reference or ignores its input (with what to try)."""
         from ..usefulness import summary_line
 
-        return summary_line(self.notes, self.spec_file, self.spec.cost, searched=self.model.search is not None)
+        return summary_line(self.notes, self.spec_file, self.spec.cost, searched=self.model.search or False)
 
 
 def fit_and_save(
@@ -130,6 +150,7 @@ def fit_and_save(
     search, with ``workers`` / ``scheduler``), assess the model's usefulness, save it to ``out`` (default:
     the spec's output), and write the ``json_path`` summary and the ``plot`` figure when given."""
     from .. import engine, store
+    from ..anneal import watch_interrupts
     from ..data import load_dataset
     from ..paths import check_outputs, spec_inputs, write_json
     from ..search import search_options
@@ -152,14 +173,15 @@ def fit_and_save(
         spec_inputs(s, spec),
         force,
     )
-    with search_options(workers=workers, scheduler=scheduler):
+    with search_options(workers=workers, scheduler=scheduler), watch_interrupts() as watch:
         progress("data", None, "loading")
         ds = load_dataset(s)
-        model, runs = engine.fit_dataset(s, ds, progress)
+        model, runs = engine.fit_dataset(s, ds, progress)  # a Ctrl-C in an annealing keeps its best network
         model.spec["output"] = str(target.resolve())
         notes = assess(model, ds, runs)
         store.save(model, target)
     result = FitResult(s, model, ds, runs, notes, target.resolve(), time.perf_counter() - t0, str(spec))
+    result.interruption = watch.interrupted
     if json_file is not None:
         write_json(json_file, result.to_json())
         result.json_path = json_file

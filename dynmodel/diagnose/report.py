@@ -4,6 +4,9 @@ YAML (runnable with ``dynmodel fit``) and the JSON summary."""
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +20,8 @@ from .runner import Diagnosis, fitted_family
 
 REPORT = "index.md"
 EXTENDED = "extended.yaml"
+#: every file a report may hold (a previous report's files that the new one does not write are removed)
+FIGURES = ("fit.png", "residual.png", "correlation.png", "spectrum.png", "loops.png", "before_after.png")
 
 
 def jsonable(obj: Any) -> Any:
@@ -58,8 +63,10 @@ def extended_spec(result: Diagnosis, folder: Path) -> dict[str, Any] | None:
     return out
 
 
-def write_extended(result: Diagnosis, folder: Path) -> Path | None:
-    spec = extended_spec(result, folder)
+def write_extended(result: Diagnosis, folder: Path, place: Path | None = None) -> Path | None:
+    """``extended.yaml`` in ``folder``; ``place``: the folder the report ends up in (where the spec's model
+    goes), when ``folder`` is a temporary one."""
+    spec = extended_spec(result, place or folder)
     if spec is None:
         return None
     folder.mkdir(parents=True, exist_ok=True)
@@ -153,8 +160,9 @@ def _pct(v: Any) -> str:
     return "–" if v is None else f"{100 * v:.1f} %"
 
 
-def write_report(result: Diagnosis, folder: Path) -> Path:
-    """index.md and the figures in ``folder``; returns the index path."""
+def write_report(result: Diagnosis, folder: Path, place: Path | None = None) -> Path:
+    """index.md and the figures in ``folder``; returns the index path. ``place``: the folder the report ends
+    up in, when ``folder`` is a temporary one (:func:`write_report_folder`)."""
     folder.mkdir(parents=True, exist_ok=True)
     base = result.baseline
     checks = {f.cause: f for f in result.checks if f.applicable}
@@ -299,7 +307,7 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
         lines += ["## Gain on the held-out test split", ""] + _gain_lines(result.gain) + [""]
         if final is not None and result.gain:
             lines += ["![before and after](before_after.png)", ""]
-        extended = extended_spec(result, folder)
+        extended = extended_spec(result, place or folder)
         if extended is not None:
             lines += [
                 f"## Extended spec (`{EXTENDED}`, run with `dynmodel fit {EXTENDED}`)",
@@ -314,3 +322,48 @@ def write_report(result: Diagnosis, folder: Path) -> Path:
     path = folder / REPORT
     path.write_text("\n".join(lines))
     return path
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def write_report_folder(result: Diagnosis, folder: Path) -> tuple[Path, Path | None]:
+    """The report (index.md, figures, extended.yaml) written into a temporary sibling of ``folder`` and moved
+    into place at the end, so that an interrupted write (Ctrl-C, a full disk) leaves ``folder`` as it was: a
+    new or empty ``folder`` is replaced by the finished report in one rename; into an existing one (a previous
+    report, or any folder with ``--force``, as :func:`dynmodel.paths.check_output` allowed) each file is moved,
+    ``index.md`` last, and a previous report's files that this one does not write are removed (other files
+    stay). Returns (index path, extended spec path or None)."""
+    folder = Path(folder)
+    final = folder.resolve()
+    parent = final.parent
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name[:100]}.", suffix=".tmp", dir=parent))
+    try:
+        os.chmod(tmp, 0o777 & ~_umask())  # the permissions of any new folder, not mkdtemp's private 0700
+        write_report(result, tmp, final)
+        extended = write_extended(result, tmp, final)
+        written = sorted(p.name for p in tmp.iterdir())
+        placed = False
+        if not final.exists() or (final.is_dir() and not any(final.iterdir())):
+            try:
+                os.replace(tmp, final)  # onto a missing or empty folder: one rename
+                placed = True
+            except OSError:
+                placed = False  # e.g. a file appeared in it meanwhile: move the files one by one
+        if not placed:
+            final.mkdir(parents=True, exist_ok=True)
+            previous = (final / REPORT).is_file()
+            for name in [n for n in written if n != REPORT] + [REPORT]:
+                os.replace(tmp / name, final / name)
+            if previous:  # the previous report's figures and extended spec that this report does not have
+                for name in (*FIGURES, EXTENDED):
+                    if name not in written and (final / name).is_file():
+                        (final / name).unlink()
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    return folder / REPORT, (folder / EXTENDED if extended is not None else None)

@@ -283,6 +283,12 @@ def sweep(
     progress = progress or no_progress
     the_plan = plan(spec, grid)
     folder = SweepFolder(out) if out is not None else None
+    if folder is not None and not folder.path.is_file():  # (a file is refused by folder.check)
+        from ..paths import check_output
+
+        # a folder in which no file can be created (permissions, a read-only mount) fails now, in one line,
+        # before the data are read; whether an existing folder may be used is the folder check's business
+        check_output(folder.path, "report", force=True, option="--out")
     data = data_files(the_plan.points) if folder else {}
     done = folder.check(the_plan.identity, resume, len(the_plan.points), data) if folder else {}
     todo = [p for p in the_plan.points if p.key not in done]
