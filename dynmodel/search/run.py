@@ -38,11 +38,11 @@ from ..data.dataset import Dataset, last_samples
 from ..data.delay import dead_times
 from ..data.derived import position_like
 from ..data.repeats import repeat_note, repeats_training
-from ..errors import DynmodelError
+from ..errors import DynmodelError, how_interrupted
 from ..extensions import merge
 from ..family import Progress, no_progress
 from ..spec import IN_MEMORY
-from .checks import failed_split, linear_band
+from .checks import AFFINE, failed_split, linear_band
 from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, REFERENCE_WORKERS, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
@@ -86,9 +86,6 @@ DEAD_TIME_SAMPLES = 50000
 #: a linear reference within this factor of the best screening score shows a system about linear
 #: (:meth:`Search._decide_band`; the benchmarks' are 6 to 860 x behind)
 LINEAR_SYSTEM = 2.0
-#: a candidate whose run is this close to affine in its input (:func:`dynmodel.usefulness.input_nonlinearity`)
-#: counts as a linear model there
-AFFINE = 1e-4
 #: rounds of diagnose's moves, and moves measured per round
 MOVE_ROUNDS = 2
 MOVES = 4
@@ -1081,8 +1078,9 @@ class Search:
                 self._decide_band()
             if not self.interrupted:
                 self._stage_moves()
-        except KeyboardInterrupt:
-            self.interrupted = "interrupted (Ctrl-C)"
+        except KeyboardInterrupt as exc:
+            how, _ = how_interrupted(exc)
+            self.interrupted = f"{'terminated' if how == 'SIGTERM' else 'interrupted'} ({how})"
             self._drop_abandoned()  # the stage's running fits would hold the workers the best one's fit needs
         model = None
         tried: set[str] = set()
@@ -1093,10 +1091,11 @@ class Search:
             tried.add(key)
             try:
                 model = self._final_model(key, level)
-            except KeyboardInterrupt:
+            except KeyboardInterrupt as exc:
+                how, _ = how_interrupted(exc)
                 self.interrupted = (
-                    f"interrupted (Ctrl-C) while the best candidate so far ({self.entries[key].label}) was fitted "
-                    "on the whole training split"
+                    f"{'terminated' if how == 'SIGTERM' else 'interrupted'} ({how}) while the best candidate so far "
+                    f"({self.entries[key].label}) was fitted on the whole training split"
                 )
                 model = None
                 break

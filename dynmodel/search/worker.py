@@ -222,7 +222,7 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any, continued: Any = No
 def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
     from .. import engine, protocol
     from ..usefulness import input_dependence, input_nonlinearity
-    from .checks import band_checks, complexity
+    from .checks import AFFINE, band_checks, complexity
     from .select import moment_score
 
     v = view(ds, task.layout)
@@ -248,15 +248,16 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
     result.moments = None if errors is None else validation_moments(v, *errors, continued)
     if fresh is not None and result.moments is not None:  # the score with the fresh start mixed in
         result.score = moment_score([result])
-    result.checks = band_checks(model, ds, task.envelope)
-    try:
-        result.dependence = None if bad else input_dependence(model, v, runs=runs)
-    except (ValueError, FloatingPointError):
-        result.dependence = None
     try:
         result.nonlinearity = None if bad else input_nonlinearity(model, v)
     except (ValueError, FloatingPointError):
         result.nonlinearity = None
+    affine = result.nonlinearity is not None and result.nonlinearity < AFFINE
+    result.checks = band_checks(model, ds, task.envelope, affine=affine)
+    try:
+        result.dependence = None if bad else input_dependence(model, v, runs=runs)
+    except (ValueError, FloatingPointError):
+        result.dependence = None
     result.complexity = complexity(model)
     info = getattr(model.family, "selection_", None)
     if isinstance(info, dict):
