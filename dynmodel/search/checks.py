@@ -15,8 +15,8 @@ a model that overshoots a peak for a few samples passes. On 300 training samples
 had rejected the NARX default (1.6 % test NMSE) for a two-sample overshoot of fold models, and kept a
 network with 18 %. Where a test input goes beyond the training input range, the band is not widened:
 forgiving a run there while that input lies beyond (EMPS: 58 %) let a NARX model drift to 143 mm test
-RMSE where the band kept one with 10.5 mm. Unless the system is about linear (the search decides, from the
-linear reference's validation error: ``Search._decide_band``): then a split's band also covers the range of
+RMSE where the band kept one with 10.5 mm. Unless the system is about linear (the search decides: the linear
+reference, or a candidate affine in its input, validates about as well as the best, ``Search._decide_band``): then a split's band also covers the range of
 the linear reference's own free run on that split's input, widened as the training range is (the
 *linear-system band*, given as ``checks["wide"]`` where it differs). A linear model's output goes beyond the
 training range as far as its input, or its drift (an integrator: a cart's position), takes it; without it, a
@@ -172,14 +172,14 @@ def band_checks(
 ) -> dict[str, Any]:
     """Per split: ``{"ok": bool, "start": how runs started, "sample": first sample outside the band or None,
     "recording": its name}`` plus ``"ok"`` over all splits, and, where the linear reference's run (``envelope``:
-    per split, its low and high per output) leaves the band, the same under the linear-system band as
-    ``"wide"`` (see :func:`linear_band`; ``affine``: the model is linear, its band is :data:`AFFINE_BAND` wider). Runs every
-    recording once, and again settled where a run from rest of a model that starts from measured outputs left
-    the band (see the module docstring)."""
+    per split, its low and high per output) leaves the band, or the model is ``affine`` in its input (its band is
+    :data:`AFFINE_BAND` wider), the same under the linear-system band as ``"wide"`` (see :func:`linear_band`).
+    Runs every recording once, and again settled where a run from rest of a model that starts from measured
+    outputs left the band (see the module docstring)."""
     lo, hi, width = band(ds)
     margin = BAND * (1.0 - EDGE) * width
     wider: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    extra = AFFINE_BAND * width if affine else 0.0 * width  # a linear model's own allowance
+    extra = AFFINE_BAND * width if affine else np.zeros_like(width)  # a linear model's own allowance
     for split in ds.splits():  # the linear-system band: the reference's run, widened as the training range
         low, high = lo - extra, hi + extra
         if split in (envelope or {}):
@@ -223,7 +223,7 @@ def band_checks(
 
 
 def linear_band(checks: dict[str, Any]) -> dict[str, Any]:
-    """``checks`` under the linear-system band (the same when no input leaves the training range)."""
+    """``checks`` under the linear-system band (``checks`` itself where that band is no wider)."""
     return checks.get("wide", checks)
 
 
