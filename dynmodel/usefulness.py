@@ -95,6 +95,19 @@ def _poor(value: float, ref: float | None, split: str, output: str | None = None
     return Note("poor", split, f"its {split} NMSE is {value:.3g} %{on}{worse}", float(value), output)
 
 
+def _scored_and_mean_input(
+    model: FittedModel, ds: Dataset, split: str | None
+) -> tuple[list[tuple[int, int, int]], np.ndarray] | None:
+    """The scored rows of ``split`` (default validation, else train) after the model's tune-in, and the
+    training mean of every input; None when the split has no scored sample."""
+    split = split or ("validation" if ds.ranges.get("validation") else "train")
+    rows = ds.scored(split, model.warmup)
+    if not rows:
+        return None
+    train_u, _ = ds.concat_inputs("train")
+    return rows, train_u.mean(axis=0) if train_u.shape[0] else np.zeros(len(ds.input_names))
+
+
 def input_dependence(
     model: FittedModel, ds: Dataset, split: str | None = None, runs: list[Run] | None = None
 ) -> float | None:
@@ -102,13 +115,11 @@ def input_dependence(
     (default validation, else train), where y(ū) is the free run with every input held at its
     training mean. inf when only the held-input run diverges; None when it cannot be measured
     (the model's own run diverges there, or the split is absent)."""
-    split = split or ("validation" if ds.ranges.get("validation") else "train")
-    warm = model.warmup
-    rows = ds.scored(split, warm)
-    if not rows:
+    scored = _scored_and_mean_input(model, ds, split)
+    if scored is None:
         return None
-    train_u, _ = ds.concat_inputs("train")
-    mean_u = train_u.mean(axis=0) if train_u.shape[0] else np.zeros(len(ds.input_names))
+    rows, mean_u = scored
+    warm = model.warmup
     moved, measured, varied = [], [], []
     for rec in sorted({r for r, _, _ in rows}):
         r = ds.recordings[rec]
@@ -134,24 +145,24 @@ def input_dependence(
     return float(np.mean(np.mean(diff**2, axis=0) / var))
 
 
-def input_nonlinearity(model: FittedModel, ds: Dataset, split: str | None = None) -> float | None:
+def input_nonlinearity(
+    model: FittedModel, ds: Dataset, split: str | None = None, runs: list[Run] | None = None
+) -> float | None:
     """How far the free run is from affine in its input: with y(u) the run on the input, y(ū) with every input
     held at its training mean and y(h) on the input halved about that mean (h = (u + ū) / 2, inside the range),
     mean((y(h) - (y(u) + y(ū)) / 2)^2) / mean(((y(u) - y(ū)) / 2)^2) over the scored samples of ``split``
     (default validation, else train), the worst output; 0 for a model linear (affine) in its input, from the same
     start. None when it cannot be measured (a run diverges, the split is absent, the run ignores the input)."""
-    split = split or ("validation" if ds.ranges.get("validation") else "train")
-    warm = model.warmup
-    rows = ds.scored(split, warm)
-    if not rows:
+    scored = _scored_and_mean_input(model, ds, split)
+    if scored is None:
         return None
-    train_u, _ = ds.concat_inputs("train")
-    mean_u = train_u.mean(axis=0) if train_u.shape[0] else np.zeros(len(ds.input_names))
+    rows, mean_u = scored
+    warm = model.warmup
     gap, half = [], []
     for rec in sorted({r for r, _, _ in rows}):
         r = ds.recordings[rec]
         tune = r.y[:warm] if warm else None
-        full = model.run(r.u, tune)
+        full = runs[rec] if runs is not None else model.run(r.u, tune)
         held = model.run(np.broadcast_to(mean_u, r.u.shape).copy(), tune)
         mid = model.run(0.5 * (r.u + mean_u), tune)
         for rr, a, b in rows:

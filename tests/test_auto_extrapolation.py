@@ -110,6 +110,24 @@ def test_a_budget_that_allows_it_fits_every_candidate_screened_near_the_best_in_
     assert full == near < set(screened)  # the far ones (the linear model here) are not refitted
 
 
+def _about_linear(tmp_path: Path, columns: dict[str, np.ndarray], budget: float):
+    """family auto on one recording (the first column the input, the second the output, the default split), in
+    this process; asserts the search found the system about linear and returns the model."""
+    write_csv(tmp_path / "d.csv", columns)
+    names = list(columns)
+    raw = {
+        "name": "about-linear",
+        "data": {"path": "d.csv", "input": names[:1], "output": names[1:2]},
+        "model": {"family": "auto", "params": {"budget": budget}},
+        "seed": 0,
+    }
+    spec = validate_spec(raw, "<test>", tmp_path)
+    with search_options(workers=1):
+        model, _ = engine.fit_dataset(spec, load_dataset(spec))
+    assert any("the system is about linear" in n for n in model.search["notes"]), model.search["notes"]
+    return model
+
+
 def test_a_linear_system_driven_beyond_its_training_range_keeps_a_linear_model(tmp_path):
     """A second-order linear plant tested at three times its training input amplitude: its output leaves the
     training output range as far as its input does, so the strict band rejected every linear candidate, and the
@@ -122,18 +140,8 @@ def test_a_linear_system_driven_beyond_its_training_range_keeps_a_linear_model(t
     u /= u.std()
     u[3200:] *= 3.0
     y = lfilter([0.0, 0.25, 0.15], [1, -1.2, 0.52], u) + 0.005 * rng.standard_normal(4000)
-    write_csv(tmp_path / "d.csv", {"u": u, "y": y})
-    raw = {
-        "name": "linear-beyond",
-        "data": {"path": "d.csv", "input": ["u"], "output": ["y"]},
-        "model": {"family": "auto", "params": {"budget": 10}},
-        "seed": 0,
-    }
-    spec = validate_spec(raw, "<test>", tmp_path)
-    with search_options(workers=1):
-        model, _ = engine.fit_dataset(spec, load_dataset(spec))
+    model = _about_linear(tmp_path, {"u": u, "y": y}, budget=10)
     assert model.search["context"]["excursion"] > 1.0  # the test input leaves the range by twice its width
-    assert any("the system is about linear" in n for n in model.search["notes"])
     assert model.metrics["test"]["nmse"] < 0.01, (model.search["winner_summary"], model.metrics["test"])
 
 
@@ -152,18 +160,8 @@ def test_a_drifting_integrator_keeps_a_linear_model(tmp_path):
         v[k] = v[k - 1] + dt * (force[k - 1] - 0.5 * v[k - 1])
         x[k] = x[k - 1] + dt * v[k - 1]
     x += 1e-4 * rng.standard_normal(n)
-    write_csv(tmp_path / "d.csv", {"force": force, "position": x})
-    raw = {
-        "name": "drift",
-        "data": {"path": "d.csv", "input": ["force"], "output": ["position"]},
-        "model": {"family": "auto", "params": {"budget": 10}},
-        "seed": 0,
-    }
-    spec = validate_spec(raw, "<test>", tmp_path)
-    with search_options(workers=1):
-        model, _ = engine.fit_dataset(spec, load_dataset(spec))
+    model = _about_linear(tmp_path, {"force": force, "position": x}, budget=10)
     assert model.search["context"]["excursion"] <= 0.05  # the force stays inside its training range
-    assert any("the system is about linear" in n for n in model.search["notes"])
     assert model.metrics["test"]["nmse"] < 5.0, (model.search["winner_summary"], model.metrics["test"])
 
 
@@ -180,15 +178,5 @@ def test_a_lightly_damped_resonance_keeps_its_linear_model(tmp_path):
     u = np.repeat(rng.standard_normal(n // 100 + 1), 100)[:n]
     y = lfilter(np.ravel(num), den, u)
     y += 0.005 * y.std() * rng.standard_normal(n)
-    write_csv(tmp_path / "d.csv", {"u": u, "y": y})
-    raw = {
-        "name": "resonance",
-        "data": {"path": "d.csv", "input": ["u"], "output": ["y"]},
-        "model": {"family": "auto", "params": {"budget": 20}},
-        "seed": 0,
-    }
-    spec = validate_spec(raw, "<test>", tmp_path)
-    with search_options(workers=1):
-        model, _ = engine.fit_dataset(spec, load_dataset(spec))
-    assert any("the system is about linear" in n for n in model.search["notes"])
+    model = _about_linear(tmp_path, {"u": u, "y": y}, budget=20)
     assert model.metrics["test"]["nmse"] < 5.0, (model.search["winner_summary"], model.metrics["test"])

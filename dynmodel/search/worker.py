@@ -249,7 +249,7 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
     if fresh is not None and result.moments is not None:  # the score with the fresh start mixed in
         result.score = moment_score([result])
     try:
-        result.nonlinearity = None if bad else input_nonlinearity(model, v)
+        result.nonlinearity = None if bad else input_nonlinearity(model, v, runs=runs)
     except (ValueError, FloatingPointError):
         result.nonlinearity = None
     affine = result.nonlinearity is not None and result.nonlinearity < AFFINE
