@@ -132,7 +132,7 @@ def test_a_linear_system_driven_beyond_its_training_range_keeps_a_linear_model(t
     """A second-order linear plant tested at three times its training input amplitude: its output leaves the
     training output range as far as its input does, so the strict band rejected every linear candidate, and the
     search kept a saturating network at 2 % test NMSE. The linear reference validates as well as the best
-    candidate: the system is about linear, and the band widens with the input's excursion."""
+    candidate: the system is about linear, and the band covers where the linear reference's free run goes."""
     from scipy.signal import lfilter
 
     rng = np.random.default_rng(16)
