@@ -31,7 +31,8 @@ def test_fit_predict_inspect_round_trip(cli, tmp_path, quick_spec):
     for header in ("split", "NMSE %", "MAX", "train", "validation", "test"):
         assert header in r.stdout
     report = json.loads((tmp_path / "fit.json").read_text())
-    assert set(report) == {"metrics", "model", "assessment", "warning", "notes"} and report["assessment"] == []
+    assert set(report) == {"metrics", "model", "assessment", "warning", "notes", "interrupted"}
+    assert report["assessment"] == [] and report["interrupted"] is None
     assert report["warning"] is None and report["notes"] == []
     assert set(report["metrics"]) == {"train", "validation", "test"}
     assert set(report["metrics"]["test"]) >= {"nmse", "max", "samples", "nmse_1"}
