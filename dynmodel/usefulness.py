@@ -295,18 +295,19 @@ def _rejected_on_test(record: Any) -> str | None:
     score = (chosen or {}).get("validation_nmse")
     if score is None:
         return None
-    better = [
+    better = [  # clearly better: at most half the chosen one's validation NMSE, and not poor itself
         c
         for c in rows
         if str(c.get("verdict", "")).startswith("rejected: leaves the output band on the test")
         and c.get("validation_nmse") is not None
-        and c["validation_nmse"] < score
+        and c["validation_nmse"] <= 0.5 * score
+        and c["validation_nmse"] < 50.0
     ]
     if not better:
         return None
     best = min(better, key=lambda c: c["validation_nmse"])
     return (
-        f"{len(better)} candidate(s) that validated better were rejected because their free run leaves the training "
+        f"{len(better)} candidate(s) that validated clearly better were rejected because their free run leaves the training "
         f"output range on the test input (best: {best.get('family')}: {best.get('summary')}, validation NMSE "
         f"{best['validation_nmse']:.3g} %): if the test truly takes the output beyond the training range, fit that "
         "one directly (its parameters are in the search record), or record training data that cover the test's range"
@@ -318,9 +319,14 @@ def what_to_try(
 ) -> str:
     """The usual next steps for a useless model (``searched``: it came from ``family: auto`` already, true or its
     search record; ``python``: fitted with the Python API on arrays, so the steps are said as Python calls)."""
-    rejected = _rejected_on_test(searched)
-    if rejected is not None:
-        return rejected
+    return _with_rejected(_what_to_try(spec_path, cost, searched, python), _rejected_on_test(searched))
+
+
+def _with_rejected(steps: str, rejected: str | None) -> str:
+    return steps if rejected is None else f"{steps}; also, {rejected}"
+
+
+def _what_to_try(spec_path: str | None, cost: str | None, searched: Any, python: bool) -> str:
     if python:
         steps = ["cost='mse_inf'"] if cost is not None and cost != "mse_inf" else []
         if searched:

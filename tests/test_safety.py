@@ -432,10 +432,14 @@ def test_a_poor_auto_model_names_the_better_candidates_the_test_band_rejected():
         ]
     }
     advice = what_to_try("s.yaml", "mse_inf", record)
-    assert advice.startswith("2 candidate(s) that validated better were rejected") and "narx: the default" in advice
+    assert advice.startswith("try `dynmodel diagnose s.yaml`") and "larger search budget" in advice
+    assert "; also, 2 candidate(s) that validated clearly better were rejected" in advice
+    assert "narx: the default" in advice
     notes = [Note("poor", "test", "its free-run NMSE is 587 % on test", 587.0)]
-    assert "2 candidate(s) that validated better" in summary_line(notes, "s.yaml", "mse_inf", record)
-    assert "larger search budget" in what_to_try("s.yaml", "mse_inf", {"candidates": record["candidates"][:1]})
+    assert "2 candidate(s) that validated clearly better" in summary_line(notes, "s.yaml", "mse_inf", record)
+    assert "also," not in what_to_try("s.yaml", "mse_inf", {"candidates": record["candidates"][:1]})
+    record["candidates"][1:3] = [{**c, "validation_nmse": 20.0} for c in record["candidates"][1:3]]
+    assert "also," not in what_to_try("s.yaml", "mse_inf", record)  # not clearly better than the chosen 27.2 %
 
 
 def test_one_useless_output_of_two_is_named(tmp_path):

@@ -87,6 +87,8 @@ DEAD_TIME_SAMPLES = 50000
 #: a system about linear (:meth:`Search._decide_band`; on EMPS, Silverbox and Bouc-Wen the reference is 53 to
 #: 860 x behind and no candidate is affine)
 LINEAR_SYSTEM = 2.0
+#: ... provided the best validation NMSE (%) is below this (two random walks, 49 % at best, are no linear system)
+LINEAR_FIT = 10.0
 #: rounds of diagnose's moves, and moves measured per round
 MOVE_ROUNDS = 2
 MOVES = 4
@@ -707,7 +709,8 @@ class Search:
     def _decide_band(self) -> None:
         """Judge the band checks under the linear-system band (:mod:`.checks`) from here on, and those made so far,
         when the linear reference, or a candidate whose run is affine in its input (:data:`AFFINE`), validates within
-        :data:`LINEAR_SYSTEM` of the best score so far (after screening, growing and the full fits): the data
+        :data:`LINEAR_SYSTEM` of the best score so far (after screening, growing and the full fits), and that best
+        is below :data:`LINEAR_FIT`: the data
         then show a system about linear, whose output may go beyond its training range where the reference's
         free run goes (a linear thermal process heated to twice its training power: the strict band rejected
         every linear model, 0.0008 % test NMSE, and kept a saturating network, 229 %; a cart whose position
@@ -725,7 +728,7 @@ class Search:
         reference = self._reference_score()
         # the linear reference, or a candidate whose run is affine in its input, validates about as the best
         near = min([x for x in [reference, *linear] if x is not None], default=math.inf)
-        if near > LINEAR_SYSTEM * best:
+        if near > LINEAR_SYSTEM * best or best >= LINEAR_FIT:  # a poor fit says little about linearity
             return
         fits = [r for e in self.entries.values() for rs in e.results.values() for r in rs]
         if not any("wide" in r.checks for r in fits):
