@@ -328,7 +328,10 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
             k,
         )
     if k <= 40:
-        grow, _ = _work(ctx, pool, k, min(ctx.n_train, GROWTH_WINDOW))
+        # the growth starts from the linear model that validates best (up to every linear term), and re-estimates
+        # every term on the free run at each step: a 2x2 system on lags 0..14 took 26 s per fit, planned 0.54 s
+        started = max(k, min(regs + 1, pool))
+        grow, _ = _work(ctx, pool, started, min(ctx.n_train, GROWTH_WINDOW))
         whole, _ = _work(ctx, pool, k)
         out.append(
             Candidate(
