@@ -193,8 +193,17 @@ def test_time_column_checks(tmp_path):
     back[300:, 0] -= 500.0
     back[10, 0] = back[8, 0]
     np.savetxt(uniform, back, delimiter="\t", fmt="%.10g")
-    with pytest.raises(DataError, match="do not increase at sample 10"):
+    with pytest.raises(DataError, match="do not increase at sample 10.*Fix: sort the rows"):
         load_dataset(make_spec(raw, tmp_path))
+    restart = np.loadtxt(uniform)
+    restart[:, 0] = np.arange(len(restart)) * 10.0  # ms
+    restart[200:, 0] -= restart[200, 0]  # a second run logged after the first, its clock from 0
+    np.savetxt(uniform, restart, delimiter="\t", fmt="%.10g")
+    n = len(restart)
+    with pytest.raises(DataError, match=rf"clock restarts there.*data.segments: \[\[0, 200\], \[200, {n}\]\]"):
+        load_dataset(make_spec(raw, tmp_path))
+    runs = load_dataset(make_spec({**raw, "data": {**raw["data"], "segments": [[0, 200], [200, n]]}}, tmp_path))
+    assert [r.n for r in runs.recordings] == [200, n - 200]
     raw["data"].pop("time_column")
     raw["data"]["resample"] = 0.01
     with pytest.raises(SpecError, match="resample needs the time stamps"):

@@ -33,12 +33,20 @@ def check_stamps(t: np.ndarray, where: str) -> np.ndarray:
     back = np.flatnonzero(dt <= 0)
     if back.size:
         k = int(back[0])
-        raise DataError(
-            f"the time stamps do not increase at sample {k + 1} ({t[k]:g} then {t[k + 1]:g})",
-            where,
-            "sort the rows by time and remove repeated stamps",
+        step = float(np.median(dt[dt > 0])) if (dt > 0).any() else 0.0
+        resets = np.flatnonzero(dt < -RESET * step)  # the clock starts again: another run follows
+        fix = (
+            "the clock restarts there (runs logged one after the other): make each run a recording of its own with "
+            f"data.segments: {_segments_around(resets, len(t))} (or data.path: a list of files)"
+            if k in resets
+            else "sort the rows by time and remove repeated stamps"
         )
+        raise DataError(f"the time stamps do not increase at sample {k + 1} ({t[k]:g} then {t[k + 1]:g})", where, fix)
     return dt
+
+
+#: a step back by more than this many sampling steps is a clock that restarts (a new run), not a row out of order
+RESET = 10
 
 
 def _segments_around(gaps: np.ndarray, n: int) -> str:
