@@ -225,6 +225,23 @@ def test_a_time_column_named_in_milliseconds_needs_its_unit(tmp_path, column, un
     make_spec({**raw, "data": {**raw["data"], "time_column": "t"}}, tmp_path)
 
 
+def test_a_gap_of_nan_outputs_can_be_cut_out_with_segments(tmp_path):
+    """20 NaN outputs in a recording: refused (a fit would carry NaN), and the fix names the segments around them,
+    which then load: only the samples the segments use must be finite (the whole file was checked)."""
+    u = np.sin(np.arange(3000) * 0.05)
+    y = np.roll(u, 1)
+    y[1000:1020] = np.nan
+    write_csv(tmp_path / "d.csv", {"u": u, "y": y})
+    raw = {"data": {"path": "d.csv", "input": ["u"], "output": ["y"]}, "model": {"family": "narx"}}
+    with pytest.raises(DataError, match=r"has NaN at sample 1000.*data.segments: \[\[0, 1000\], \[1020, 3000\]\]"):
+        load_dataset(make_spec(raw, tmp_path))
+    cut = {**raw, "data": {**raw["data"], "segments": [[0, 1000], [1020, 3000]]}}
+    assert [r.n for r in load_dataset(make_spec(cut, tmp_path)).recordings] == [1000, 1980]
+    across = {**raw, "data": {**raw["data"], "segments": [[0, 1010], [1020, 3000]]}}
+    with pytest.raises(DataError, match="has NaN at sample 1000"):
+        load_dataset(make_spec(across, tmp_path))
+
+
 def test_a_time_column_the_spec_does_not_use_is_noted(tmp_path):
     """A file with a column t in steps of 0.1 s, and no time_column: the sampling time silently stayed 1 s."""
     u = np.sin(np.arange(300) * 0.1)

@@ -362,6 +362,25 @@ def _read_recording(p: Any, src: dict[str, Any], resolve) -> tuple[np.ndarray, n
     return data, (cols[str(time_col).strip()] if time_col is not None else None), path, path.name
 
 
+def _only(data: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``data`` with the rows not used set to 0 (sample numbers in messages stay the file's)."""
+    return data if rows.all() else np.where(rows[:, None], data, 0.0)
+
+
+def _gap_fix(data: np.ndarray, rows: np.ndarray) -> str:
+    """How to fit around the non-finite samples of the used ``rows``: the data.segments between them (each a
+    recording of its own), when they leave stretches of at least 2 samples; else interpolate or fill."""
+    from .finite import FILL
+
+    good = np.isfinite(data).all(axis=1) & rows
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], good.astype(np.int8), [0]])))
+    runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a > 1]
+    if not runs or len(runs) > 8:
+        return FILL
+    shown = ", ".join(f"[{a}, {b}]" for a, b in runs)
+    return f"{FILL}, or fit around them: data.segments: [{shown}] (each a recording of its own)"
+
+
 def _file_recordings(
     src: dict[str, Any], resolve, missing_outputs: bool = False
 ) -> tuple[list[Recording], float | None]:
@@ -375,11 +394,16 @@ def _file_recordings(
     for p in paths:
         data, t, path, label = _read_recording(p, src, resolve)
         names = [str(s) for s in selectors]
+        # only the samples the segments use must be finite (with resample, segments index the resampled grid)
+        used = (src.get("segments") if not src.get("resample") else None) or [(0, data.shape[0])]
+        rows = np.zeros(data.shape[0], dtype=bool)
+        for a, b in used:
+            rows[max(a, 0) : max(b, 0)] = True
         if missing_outputs:  # NaN outputs are unknown ones (never scored); inf is still an error
-            check_finite(data[:, :n_in], names[:n_in], str(path))
-            check_finite(np.where(np.isnan(data[:, n_in:]), 0.0, data[:, n_in:]), names[n_in:], str(path))
+            check_finite(_only(data[:, :n_in], rows), names[:n_in], str(path))
+            check_finite(np.where(np.isnan(data[:, n_in:]), 0.0, _only(data[:, n_in:], rows)), names[n_in:], str(path))
         else:
-            check_finite(data, names, str(path))
+            check_finite(_only(data, rows), names, str(path), _gap_fix(data, rows))
         segments = src.get("segments") or [(0, data.shape[0])]
         if t is not None and src.get("segments") and not src.get("resample"):
             # recordings cut out of one file: only each one's own stamps need be uniform (the cuts may skip gaps)
