@@ -242,6 +242,18 @@ def test_a_gap_of_nan_outputs_can_be_cut_out_with_segments(tmp_path):
         load_dataset(make_spec(across, tmp_path))
 
 
+def test_an_input_quiet_in_the_training_split_is_noted(tmp_path):
+    """A record excited only after its first 75 %: with the default split the training input barely moves."""
+    rng = np.random.default_rng(0)
+    u = np.concatenate([0.002 * rng.standard_normal(3000), rng.standard_normal(1000)])
+    write_csv(tmp_path / "d.csv", {"u": u, "y": np.roll(u, 1)})
+    raw = {"data": {"path": "d.csv", "input": ["u"], "output": ["y"]}, "model": {"family": "narx"}}
+    (note,) = load_dataset(make_spec(raw, tmp_path)).quiet_training_notes()
+    assert note.startswith("the input 'u' barely moves in the training split (std 0.002") and "data.split" in note
+    excited = {**raw, "data": {**raw["data"], "split": {"train": [1000, 3800], "validation": [3800, 4000]}}}
+    assert load_dataset(make_spec(excited, tmp_path)).quiet_training_notes() == []
+
+
 def test_a_time_column_the_spec_does_not_use_is_noted(tmp_path):
     """A file with a column t in steps of 0.1 s, and no time_column: the sampling time silently stayed 1 s."""
     u = np.sin(np.arange(300) * 0.1)
