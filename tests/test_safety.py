@@ -442,6 +442,27 @@ def test_a_poor_auto_model_names_the_better_candidates_the_test_band_rejected():
     assert "also," not in what_to_try("s.yaml", "mse_inf", record)  # not clearly better than the chosen 27.2 %
 
 
+def test_a_test_recording_with_an_offset_is_said_to_be_one(tmp_path):
+    """A test file recorded with a shifted sensor zero: the model is right (its error is a constant), and the
+    warning said "validate on data like the test's ... or prefer a simpler model"."""
+    u, y = narx(2000, 1)
+    ut, yt = narx(800, 2)
+    write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    write_csv(tmp_path / "test.csv", {"u": ut, "y": yt + 2.0 * yt.std()})
+    raw = {
+        "data": {"path": "train.csv", "input": ["u"], "output": ["y"], "split": {"train": 0.8, "validation": 0.2}},
+        "model": {"family": "narx", "params": {"degree": 3, "lags": {"u": [0, 1, 2], "y": [1, 2]}}},
+        "cost": "mse_inf",
+    }
+    raw["data"]["test"] = {"path": "test.csv"}
+    spec = make_spec(raw, tmp_path)
+    ds = load_dataset(spec)
+    model, runs = engine.fit_dataset(spec, ds)
+    line = summary_line(assess(model, ds, runs), "s.yaml", "mse_inf")
+    assert "mostly a constant offset (mean error" in line and "(a sensor offset?)" in line
+    assert "prefer a simpler model" not in line
+
+
 def test_one_useless_output_of_two_is_named(tmp_path):
     """A model with one good output and one that is noise unrelated to the input: the mean over outputs
     (about 55 %) stays under the 90 % line, so the useless output must be judged on its own."""
