@@ -225,6 +225,16 @@ def test_a_time_column_named_in_milliseconds_needs_its_unit(tmp_path, column, un
     make_spec({**raw, "data": {**raw["data"], "time_column": "t"}}, tmp_path)
 
 
+def test_rounded_time_stamps_get_the_mean_step_as_resampling_grid():
+    """Stamps rounded to 1 ms on a 3.3 ms period step by 3 or 4 ms, median 3 ms: resampling at the median (the
+    advice) stretched the record by 10 %."""
+    from dynmodel.data import resample
+
+    t = np.round(np.arange(3000) * 0.0033, 3)
+    with pytest.raises(DataError, match=r"add 'resample: 0\.00330\d*'"):
+        resample.uniform(t, np.zeros((3000, 1)), None, "f.csv")
+
+
 def test_a_gap_of_nan_outputs_can_be_cut_out_with_segments(tmp_path):
     """20 NaN outputs in a recording: refused (a fit would carry NaN), and the fix names the segments around them,
     which then load: only the samples the segments use must be finite (the whole file was checked)."""

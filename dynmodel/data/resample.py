@@ -78,10 +78,12 @@ def uniform(t: np.ndarray, data: np.ndarray, step: float | None, where: str) -> 
                     f"{_segments_around(gaps, len(t))}), or add 'resample: {med:.6g}' to bridge it by linear "
                     "interpolation",
                 )
+            mean = float((t[-1] - t[0]) / (len(t) - 1))  # rounded stamps (1 ms on a 3.3 ms period) skew the median
             raise DataError(
-                f"the time stamps are not uniform (steps from {dt.min():.6g} to {dt.max():.6g} s, median {med:.6g} s)",
+                f"the time stamps are not uniform (steps from {dt.min():.6g} to {dt.max():.6g} s, median {med:.6g} s, "
+                f"mean {mean:.6g} s)",
                 where,
-                f"add 'resample: {med:.6g}' to interpolate onto a uniform grid",
+                f"add 'resample: {mean:.6g}' to interpolate onto a uniform grid",
             )
         return data, float((t[-1] - t[0]) / (len(t) - 1))
     t0 = float(t[0])
