@@ -262,6 +262,17 @@ def _run_or_unknown(model: FittedModel, u: np.ndarray, tune: np.ndarray | None) 
     return model.run(u, tune)
 
 
+def _score(
+    entry: dict[str, Any], y: np.ndarray, yhat: np.ndarray, metrics: Sequence[str], names: Sequence[str]
+) -> None:
+    """The metrics of the free run ``yhat`` against ``y`` into ``entry`` (per output too for several)."""
+    values = {m: METRICS[m](y, yhat) for m in metrics}
+    for m, v in values.items():
+        entry[m] = float(np.max(v)) if m == "max" else (float(np.min(v)) if m == "fit" else float(np.mean(v)))
+    if len(names) > 1:
+        entry["per_output"] = {name: {m: float(values[m][i]) for m in metrics} for i, name in enumerate(names)}
+
+
 def evaluate(
     model: FittedModel, ds: Dataset, metrics: Sequence[str] = DEFAULT_METRICS, one_step: bool = True
 ) -> tuple[dict[str, Any], list[Run]]:
@@ -290,6 +301,21 @@ def evaluate(
                 unstable = {"recording": ds.recordings[rec].name, "sample": int(k), "time": float(k * st)}
                 break
         y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
+        known = np.isfinite(y).all(axis=1) if rows else np.ones(0, dtype=bool)
+        if not unstable and known.any() and not known.all():  # outputs missing in places: scored where known
+            keep = known & np.isfinite(np.concatenate([runs[r].y[a:b] for r, a, b in rows])).all(axis=1)
+            if keep.any():
+                entry["unknown"] = int((~known).sum())
+                entry["samples"] = int(keep.sum())
+                y = y[keep]
+                yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])[keep]
+                _score(entry, y, yhat, metrics, model.output_names)
+                if one is not None:
+                    y1 = np.concatenate([one[r][a:b] for r, a, b in rows])[keep]
+                    fine = np.isfinite(y1).all(axis=1)
+                    entry["nmse_1"] = float(np.mean(nmse(y[fine], y1[fine]))) if fine.any() else None
+                out[split] = entry
+                continue
         if not unstable and rows and not np.isfinite(y).all():  # a test set whose outputs are unknown (NaN)
             entry.update({m: None for m in metrics})
             entry["unscored"] = "the measured outputs are unknown (NaN)" + (
@@ -306,14 +332,7 @@ def evaluate(
             entry.update({m: None for m in metrics})
             entry["unstable_from"] = unstable
         else:
-            yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])
-            values = {m: METRICS[m](y, yhat) for m in metrics}
-            for m, v in values.items():
-                entry[m] = float(np.max(v)) if m == "max" else (float(np.min(v)) if m == "fit" else float(np.mean(v)))
-            if len(model.output_names) > 1:
-                entry["per_output"] = {
-                    name: {m: float(values[m][i]) for m in metrics} for i, name in enumerate(model.output_names)
-                }
+            _score(entry, y, np.concatenate([runs[r].y[a:b] for r, a, b in rows]), metrics, model.output_names)
         if one is not None:
             y1 = np.concatenate([one[r][a:b] for r, a, b in rows])
             entry["nmse_1"] = float(np.mean(nmse(y, y1)))

@@ -670,6 +670,30 @@ def test_a_test_file_with_unknown_outputs_is_unscored_not_a_crash(cli, tmp_path)
     assert "measured outputs, so it was not run there" in note
 
 
+def test_a_test_file_with_a_gap_of_unknown_outputs_is_scored_where_known(cli, tmp_path):
+    """50 of 800 test outputs NaN (a logging gap): the whole test split went unscored ("the measured outputs are
+    unknown"), where 750 samples could be."""
+    u, y = narx(1500, 1)
+    ut, yt = narx(800, 2)
+    gap = yt.copy()
+    gap[400:450] = np.nan
+    write_csv(tmp_path / "run.csv", {"u": u, "y": y})
+    write_csv(tmp_path / "gap.csv", {"u": ut, "y": gap})
+    write_csv(tmp_path / "whole.csv", {"u": ut, "y": yt})
+    for name in ("gap", "whole"):
+        (tmp_path / f"{name}.yaml").write_text(
+            f"data: {{path: run.csv, input: [u], output: [y], test: {{path: {name}.csv}}}}\n"
+            "model: {family: narx, params: {degree: 3, lags: {u: [0, 1, 2], y: [1, 2]}}}\n"
+        )
+        assert cli("fit", tmp_path / f"{name}.yaml", "--json", tmp_path / f"{name}.json", "-q").exit_code == 0
+    part = json.loads((tmp_path / "gap.json").read_text())
+    whole = json.loads((tmp_path / "whole.json").read_text())["metrics"]["test"]
+    test = part["metrics"]["test"]
+    assert test["samples"] == whole["samples"] - 50 and test["unknown"] == 50
+    assert test["nmse"] == pytest.approx(whole["nmse"], rel=0.2)  # the same model, 94 % of the samples
+    assert any("scored on its 748 samples with known outputs: 50 with NaN outputs" in n for n in part["notes"])
+
+
 def test_held_out_data_that_are_training_data_are_said(tmp_path):
     """Overlapping segments of one file, and the training file given again as the test: the scores would
     measure the fit to training data, which the notes say; disjoint splits give none."""

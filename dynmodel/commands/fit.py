@@ -62,6 +62,12 @@ class FitResult:
             for split, m in self.model.metrics.items()
             if m.get("unscored")
         ]
+        notes += [
+            f"the {split} split is scored on its {m['samples']} samples with known outputs: {m['unknown']} with NaN "
+            "outputs are left out"
+            for split, m in self.model.metrics.items()
+            if m.get("unknown")
+        ]
         notes += self.dataset.small_split_notes(self.model.warmup)
         notes += self.dataset.overlap_notes()
         notes += self.dataset.quiet_training_notes()
