@@ -816,8 +816,8 @@ class Search:
             named = "; ".join(skipped[:3]) + (f"; and {len(skipped) - 3} more" if len(skipped) > 3 else "")
             self.notes.append(
                 f"not fitted in full, each fit alone planned beyond the {max(room, 0.0):.0f} s of work left of the "
-                f"budget's {self.budget.allowance:.0f}: {named}; their screening fits (the cheap variant, {where}) "
-                "stand as their final ones"
+                f"{self.budget.allowance:.0f} s a budget of {self.budget.seconds:g} s allows ({REFERENCE_WORKERS} "
+                f"workers' worth): {named}; their screening fits (the cheap variant, {where}) stand as their final ones"
             )
         return kept
 
