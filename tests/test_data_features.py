@@ -258,10 +258,14 @@ def test_an_input_quiet_in_the_training_split_is_noted(tmp_path):
     u = np.concatenate([0.002 * rng.standard_normal(3000), rng.standard_normal(1000)])
     write_csv(tmp_path / "d.csv", {"u": u, "y": np.roll(u, 1)})
     raw = {"data": {"path": "d.csv", "input": ["u"], "output": ["y"]}, "model": {"family": "narx"}}
-    (note,) = load_dataset(make_spec(raw, tmp_path)).quiet_training_notes()
+    (note,) = load_dataset(make_spec(raw, tmp_path)).training_input_notes()
     assert note.startswith("the input 'u' barely moves in the training split (std 0.002") and "data.split" in note
     excited = {**raw, "data": {**raw["data"], "split": {"train": [1000, 3800], "validation": [3800, 4000]}}}
-    assert load_dataset(make_spec(excited, tmp_path)).quiet_training_notes() == []
+    assert load_dataset(make_spec(excited, tmp_path)).training_input_notes() == []
+    write_csv(tmp_path / "two.csv", {"u": u, "v": u.copy(), "y": np.roll(u, 1)})
+    twice = {**excited, "data": {**excited["data"], "path": "two.csv", "input": ["u", "v"]}}
+    (dup,) = load_dataset(make_spec(twice, tmp_path)).training_input_notes()
+    assert dup.startswith("the input 'v' equals the input 'u' on every training sample")
 
 
 def test_a_time_column_the_spec_does_not_use_is_noted(tmp_path):

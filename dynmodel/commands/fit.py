@@ -70,7 +70,7 @@ class FitResult:
         ]
         notes += self.dataset.small_split_notes(self.model.warmup)
         notes += self.dataset.overlap_notes()
-        notes += self.dataset.quiet_training_notes()
+        notes += self.dataset.training_input_notes()
         notes += self.dataset.excursion_notes()
         notes += [
             note

@@ -88,7 +88,7 @@ def beyond_range(u: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[tuple[fl
 
 
 #: an input whose training std is below this fraction of its std in the other splits is noted
-#: (:meth:`Dataset.quiet_training_notes`)
+#: (:meth:`Dataset.training_input_notes`)
 QUIET = 0.1
 #: a validation or test split with fewer scored samples than this is noted (:meth:`Dataset.small_split_notes`)
 FEW_SCORED = 30
@@ -263,8 +263,8 @@ class Dataset:
                 )
         return notes
 
-    def quiet_training_notes(self) -> list[str]:
-        """An input that barely moves in the training split while it does elsewhere (std below :data:`QUIET` of
+    def training_input_notes(self) -> list[str]:
+        """An input that repeats another one on every training sample, and an input that barely moves in the training split while it does elsewhere (std below :data:`QUIET` of
         the other splits'): the model cannot learn how the output answers it (a record excited only after its
         first 75 %, split 60 / 20 / 20: the search kept a one-term model at 62 % test NMSE)."""
         train, _ = self.concat_inputs("train")
@@ -276,6 +276,15 @@ class Dataset:
             return []
         notes = []
         for j, name in enumerate(self.input_names):
+            same = next(
+                (other for i, other in enumerate(self.input_names[:j]) if np.array_equal(train[:, i], train[:, j])),
+                None,
+            )
+            if same is not None:
+                notes.append(
+                    f"the input '{name}' equals the input '{same}' on every training sample: it adds nothing the model "
+                    "can use; remove one of them from data.input"
+                )
             quiet, moving = float(np.std(train[:, j])), float(np.std(rest[:, j]))
             if moving > 0 and quiet < QUIET * moving:
                 notes.append(
