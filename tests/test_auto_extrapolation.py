@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from beyond_range import CASES
 from conftest import narx, write_csv
 
 from dynmodel import engine
@@ -110,14 +111,14 @@ def test_a_budget_that_allows_it_fits_every_candidate_screened_near_the_best_in_
     assert full == near < set(screened)  # the far ones (the linear model here) are not refitted
 
 
-def _about_linear(tmp_path: Path, columns: dict[str, np.ndarray], budget: float):
-    """family auto on one recording (the first column the input, the second the output, the default split), in
-    this process; asserts the search found the system about linear and returns the model."""
+def _about_linear(tmp_path: Path, case: str, budget: float):
+    """family auto on the generated recording ``case`` of beyond_range.py (the default split), in this process;
+    asserts the search found the system about linear and returns the model."""
+    columns, inputs = CASES[case]()
     write_csv(tmp_path / "d.csv", columns)
-    names = list(columns)
     raw = {
-        "name": "about-linear",
-        "data": {"path": "d.csv", "input": names[:1], "output": names[1:2]},
+        "name": case,
+        "data": {"path": "d.csv", "input": inputs, "output": [c for c in columns if c not in inputs]},
         "model": {"family": "auto", "params": {"budget": budget}},
         "seed": 0,
     }
@@ -133,15 +134,8 @@ def test_a_linear_system_driven_beyond_its_training_range_keeps_a_linear_model(t
     training output range as far as its input does, so the strict band rejected every linear candidate, and the
     search kept a saturating network at 2 % test NMSE. The linear reference validates as well as the best
     candidate: the system is about linear, and the band covers where the linear reference's free run goes."""
-    from scipy.signal import lfilter
-
-    rng = np.random.default_rng(16)
-    u = lfilter([0.6], [1, -0.4], rng.standard_normal(4000))
-    u /= u.std()
-    u[3200:] *= 3.0
-    y = lfilter([0.0, 0.25, 0.15], [1, -1.2, 0.52], u) + 0.005 * rng.standard_normal(4000)
-    model = _about_linear(tmp_path, {"u": u, "y": y}, budget=10)
-    assert model.search["context"]["excursion"] > 1.0  # the test input leaves the range by twice its width
+    model = _about_linear(tmp_path, "plant-3x", budget=10)
+    assert model.search["context"]["excursion"] > 0.5  # the test input leaves the training range by 74 % of its width
     assert model.metrics["test"]["nmse"] < 0.01, (model.search["winner_summary"], model.metrics["test"])
 
 
@@ -150,17 +144,7 @@ def test_a_drifting_integrator_keeps_a_linear_model(tmp_path):
     stays inside its own. The strict band rejected every model that follows the drift (the NARX default,
     0.005 % validation NMSE) and the search kept a network at 587 % test NMSE. A linear NARX candidate validates
     best and its run is affine in the input, so the system counts as about linear."""
-    from scipy.signal import lfilter
-
-    rng = np.random.default_rng(15)
-    n, dt = 4000, 0.01
-    force = lfilter([0.2], [1, -0.8], rng.standard_normal(n)) + 0.15
-    v, x = np.zeros(n), np.zeros(n)
-    for k in range(1, n):
-        v[k] = v[k - 1] + dt * (force[k - 1] - 0.5 * v[k - 1])
-        x[k] = x[k - 1] + dt * v[k - 1]
-    x += 1e-4 * rng.standard_normal(n)
-    model = _about_linear(tmp_path, {"force": force, "position": x}, budget=10)
+    model = _about_linear(tmp_path, "cart", budget=10)
     assert model.search["context"]["excursion"] <= 0.05  # the force stays inside its training range
     assert model.metrics["test"]["nmse"] < 5.0, (model.search["winner_summary"], model.metrics["test"])
 
@@ -170,13 +154,5 @@ def test_a_lightly_damped_resonance_keeps_its_linear_model(tmp_path):
     realization takes the true output 0.53 training ranges beyond the training output range. Every linear NARX
     candidate (0.0015 % validation NMSE) left the band there, and the search kept an output-error model at
     87.5 % test NMSE. A linear candidate's band is half a range wider under the linear-system band."""
-    from scipy.signal import cont2discrete, lfilter
-
-    rng = np.random.default_rng(30)
-    n, wn = 6000, 2 * np.pi
-    num, den, _ = cont2discrete(([wn**2], [1, 0.04 * wn, wn**2]), 1e-3, method="zoh")
-    u = np.repeat(rng.standard_normal(n // 100 + 1), 100)[:n]
-    y = lfilter(np.ravel(num), den, u)
-    y += 0.005 * y.std() * rng.standard_normal(n)
-    model = _about_linear(tmp_path, {"u": u, "y": y}, budget=20)
+    model = _about_linear(tmp_path, "resonance", budget=20)
     assert model.metrics["test"]["nmse"] < 5.0, (model.search["winner_summary"], model.metrics["test"])
