@@ -303,13 +303,13 @@ def evaluate(
         y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
         known = np.isfinite(y).all(axis=1) if rows else np.ones(0, dtype=bool)
         if not unstable and known.any() and not known.all():  # outputs missing in places: scored where known
-            keep = known & np.isfinite(np.concatenate([runs[r].y[a:b] for r, a, b in rows])).all(axis=1)
+            yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])
+            keep = known & np.isfinite(yhat).all(axis=1)
             if keep.any():
                 entry["unknown"] = int((~known).sum())
                 entry["samples"] = int(keep.sum())
                 y = y[keep]
-                yhat = np.concatenate([runs[r].y[a:b] for r, a, b in rows])[keep]
-                _score(entry, y, yhat, metrics, model.output_names)
+                _score(entry, y, yhat[keep], metrics, model.output_names)
                 if one is not None:
                     y1 = np.concatenate([one[r][a:b] for r, a, b in rows])[keep]
                     fine = np.isfinite(y1).all(axis=1)

@@ -480,6 +480,14 @@ def safe_name(name: str, limit: int = 80) -> str:
     return cleaned
 
 
+def umask() -> int:
+    """The process's umask (read by setting it and setting it back): new outputs get 0666 (folders 0777) minus
+    it, not the private 0600 of a temporary file."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def write_text(path: PathLike, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` through a temporary file and a rename, so an interrupted
     write never leaves half a file; the file gets the user's umask."""
@@ -489,9 +497,7 @@ def write_text(path: PathLike, text: str) -> Path:
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
-        mask = os.umask(0o022)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
+        os.chmod(tmp, 0o666 & ~umask())
         os.replace(tmp, p)
     except BaseException:
         if os.path.exists(tmp):

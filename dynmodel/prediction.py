@@ -18,12 +18,12 @@ from typing import IO
 
 import numpy as np
 
+from .data.dataset import time_named
 from .data.finite import check_finite
 from .data.readers import list_columns, read_columns
 from .errors import DataError
 from .model import FittedModel, Run
 
-TIME_NAMES = ("t", "time", "time_s", "t_s", "zeit")
 MEASURED = "measured"
 
 
@@ -45,11 +45,7 @@ def time_column(model: FittedModel, path: Path) -> str | None:
     wanted = data.get("time_column")
     if isinstance(wanted, str) and wanted in names:
         return wanted
-    lower = {n.lower(): n for n in names}
-    for candidate in TIME_NAMES:
-        if candidate in lower and lower[candidate] not in model.input_names + model.output_names:
-            return lower[candidate]
-    return None
+    return time_named(names, model.input_names + model.output_names)
 
 
 def read_inputs(model: FittedModel, input_path: Path, tune_in_path: Path | None = None) -> PredictionInput:

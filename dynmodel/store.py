@@ -37,6 +37,7 @@ from .data.preprocess import Preprocessor
 from .errors import ModelFileError
 from .family import Family
 from .model import FittedModel
+from .paths import umask
 
 FORMAT = "dynmodel-model"
 FORMAT_VERSION = 1
@@ -139,12 +140,6 @@ def remove_stale_temporaries(path: str | Path) -> list[Path]:
     return removed
 
 
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
 def save(model: FittedModel | Family, path: str | Path) -> Path:
     """Write ``model`` (a FittedModel, or a family fitted on arrays) to ``path`` atomically; returns the path."""
     import h5py
@@ -156,7 +151,7 @@ def save(model: FittedModel | Family, path: str | Path) -> Path:
     remove_stale_temporaries(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}@{_host()}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
-    os.chmod(tmp, 0o666 & ~_umask())
+    os.chmod(tmp, 0o666 & ~umask())
     try:
         with h5py.File(tmp, "w") as f:
             f.attrs["format"] = FORMAT

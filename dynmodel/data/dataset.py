@@ -264,9 +264,10 @@ class Dataset:
         return notes
 
     def training_input_notes(self) -> list[str]:
-        """An input that repeats another one on every training sample, and an input that barely moves in the training split while it does elsewhere (std below :data:`QUIET` of
-        the other splits'): the model cannot learn how the output answers it (a record excited only after its
-        first 75 %, split 60 / 20 / 20: the search kept a one-term model at 62 % test NMSE)."""
+        """An input that repeats another one on every training sample, and one that barely moves in the training
+        split while it does elsewhere (std below :data:`QUIET` of the other splits'): the model cannot learn how the
+        output answers it (a record excited only after its first 75 %, split 60 / 20 / 20: the search kept a
+        one-term model at 62 % test NMSE)."""
         train, _ = self.concat_inputs("train")
         if train.shape[0] < 2:
             return []
@@ -595,6 +596,12 @@ def _load_source(src: dict[str, Any], resolve, where: str, missing_outputs: bool
 TIME_NAMES = ("t", "time", "time_s", "t_s", "zeit")
 
 
+def time_named(names: list[str], taken: list[str]) -> str | None:
+    """The first of ``names`` (case aside) that :data:`TIME_NAMES` calls a time column, other than ``taken``."""
+    lower = {n.lower(): n for n in names if n not in taken}
+    return next((lower[c] for c in TIME_NAMES if c in lower), None)
+
+
 def _unused_time_column(src: dict[str, Any], resolve) -> None:
     """Note a column named as time (t, time, ...) with uniform steps other than 1 s that the spec does not use: the
     sampling time then stays 1 s (plots, times in seconds, predict's check of a new file's time column)."""
@@ -612,8 +619,7 @@ def _unused_time_column(src: dict[str, Any], resolve) -> None:
         names = list(src.get("columns") or list_columns(path, **opts))
     except (DataError, SpecError, OSError, ValueError):
         return
-    lower = {n.lower(): n for n in names if n not in [str(c) for c in src["input"] + src["output"]]}
-    name = next((lower[c] for c in TIME_NAMES if c in lower), None)
+    name = time_named(names, [str(c) for c in src["input"] + src["output"]])
     if name is None:
         return
     try:

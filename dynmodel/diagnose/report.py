@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from ..paths import umask
 from . import figures
 from .context import segments_of
 from .gain import test_key
@@ -324,12 +325,6 @@ def write_report(result: Diagnosis, folder: Path, place: Path | None = None) -> 
     return path
 
 
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
 def write_report_folder(result: Diagnosis, folder: Path) -> tuple[Path, Path | None]:
     """The report (index.md, figures, extended.yaml) written into a temporary sibling of ``folder`` and moved
     into place at the end, so that an interrupted write (Ctrl-C, a full disk) leaves ``folder`` as it was: a
@@ -343,7 +338,7 @@ def write_report_folder(result: Diagnosis, folder: Path) -> tuple[Path, Path | N
     parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{final.name[:100]}.", suffix=".tmp", dir=parent))
     try:
-        os.chmod(tmp, 0o777 & ~_umask())  # the permissions of any new folder, not mkdtemp's private 0700
+        os.chmod(tmp, 0o777 & ~umask())  # the permissions of any new folder, not mkdtemp's private 0700
         write_report(result, tmp, final)
         extended = write_extended(result, tmp, final)
         written = sorted(p.name for p in tmp.iterdir())

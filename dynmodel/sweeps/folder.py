@@ -15,41 +15,18 @@ that are not a sweep's, is refused before any fit; nothing in it is overwritten.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 from ..errors import SpecError
+from ..paths import write_text
 
 FORMAT = "dynmodel-sweep"
 FORMAT_VERSION = 1
 #: statuses a --resume does not run again (errors are retried: they may have been transient)
 FINISHED = ("ok", "diverged")
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def write_atomic(path: Path, text: str | bytes) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename; the file gets the permissions of any
-    new file (0666 minus the umask), like every other output, not the private 0600 of a temporary file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(text.encode() if isinstance(text, str) else text)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 class SweepFolder:
@@ -151,9 +128,9 @@ class SweepFolder:
             return
         for key, raw in specs.items():
             header = f"# point {key} of the sweep in {self.path} (run it alone: dynmodel fit {self.spec_path(key)})\n"
-            write_atomic(self.spec_path(key), header + yaml.safe_dump(raw, sort_keys=False))
+            write_text(self.spec_path(key), header + yaml.safe_dump(raw, sort_keys=False))
         body = {"format": FORMAT, "format_version": FORMAT_VERSION, **manifest}
-        write_atomic(self.manifest_path, json.dumps(body, indent=1, default=str) + "\n")
+        write_text(self.manifest_path, json.dumps(body, indent=1, default=str) + "\n")
 
     def write_record(self, record: dict[str, Any]) -> None:
-        write_atomic(self.point_path(record["key"]), json.dumps(record, indent=1, default=str) + "\n")
+        write_text(self.point_path(record["key"]), json.dumps(record, indent=1, default=str) + "\n")

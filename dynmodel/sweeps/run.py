@@ -22,8 +22,9 @@ from .. import __version__
 from ..batch import ModelArrays, PointResult, Variant, cached_dataset, data_key, run_specs
 from ..errors import DynmodelError, SpecError
 from ..family import Progress, no_progress
+from ..paths import write_text
 from ..spec import Spec, load_spec, parse_yaml, validate_spec
-from .folder import SweepFolder, write_atomic
+from .folder import SweepFolder
 from .grid import Grid, Point, build_points, identity, load_grid, parse_grid
 from .results import SweepResult, choose_sort, score
 
@@ -244,8 +245,8 @@ class _Recorder:
         now = time.monotonic()
         if self.folder is not None and (force or now - self._last_write >= RESULTS_INTERVAL):
             res = self.result()
-            write_atomic(self.folder.path / "results.csv", res.to_csv())
-            write_atomic(self.folder.path / "results.json", json.dumps(res.to_json(), indent=1, default=str) + "\n")
+            write_text(self.folder.path / "results.csv", res.to_csv())
+            write_text(self.folder.path / "results.json", json.dumps(res.to_json(), indent=1, default=str) + "\n")
             self._last_write = now
 
 
