@@ -53,7 +53,7 @@ def fit(spec: Spec | dict | str | Path, data: Any = None, progress: Any = None) 
 
         return fit_spec(spec, data, progress)
     from . import engine
-    from .api import progress_reporter, warn_if_useless
+    from .api import progress_reporter, warn_data_notes, warn_if_useless
     from .data import load_dataset
 
     if isinstance(spec, Mapping):
@@ -63,6 +63,7 @@ def fit(spec: Spec | dict | str | Path, data: Any = None, progress: Any = None) 
     with progress_reporter(progress) as report:
         report("data", None, "loading")
         ds = load_dataset(spec)
+        warn_data_notes(ds)
         model, runs = engine.fit_dataset(spec, ds, report)
     warn_if_useless(model, ds, runs)  # as on arrays: a model of little use is never silent
     return model

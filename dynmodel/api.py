@@ -113,6 +113,7 @@ def fit_arrays(
     delay_form: str = "copy",
     derived_inputs: Sequence[Mapping[str, Any]] = (),
     detrend: Sequence[Any] = (),
+    spikes: str = "replace",
     progress: Progress | bool | None = None,
 ) -> FittedModel:
     """Fit ``family`` on recordings given in Python (see ``Family.fit``); returns the FittedModel, which
@@ -161,16 +162,27 @@ def fit_arrays(
             delay_form=delay_form,
             derived_inputs=list(derived_inputs),
             detrend=list(detrend),
+            spikes=spikes,
         )
     except ValidationError as exc:
         raise ParameterError(validation_summary(exc), "fit", "see help(Family.fit)") from None
     sources["data"] = (recs, float(data.sampling_time), ins, outs)
     spec = ArraySpec(family, data, cost, int(seed), EvaluationSpec(), separate=tuple(s for s in sources if s != "data"))
     ds = load_dataset(spec, sources)
+    warn_data_notes(ds)
     with progress_reporter(progress) as report:
         model, runs = engine.fit_family(family, spec, ds, report)
     warn_if_useless(model, ds, runs)
     return model
+
+
+def warn_data_notes(ds: Dataset) -> None:
+    """What was found in the measured outputs and done about it (spikes replaced, a clipped sensor), as
+    :class:`~dynmodel.textfiles.DataNote` warnings: a notebook sees what ``dynmodel fit`` prints as notes."""
+    from .textfiles import DataNote
+
+    for note in ds.artifact_notes():
+        warnings.warn(DataNote(note[0].upper() + note[1:]), stacklevel=_caller_level())
 
 
 def warn_if_useless(model: FittedModel, ds: Dataset, runs: list[Run]) -> None:
@@ -290,6 +302,7 @@ def fit_spec(
     validated = validate_spec({**raw, "data": raw_data}, source, base)
     sources = {k: (r, st, i, o) for k, (r, i, o) in loaded.items()}
     ds = load_dataset(validated, sources)
+    warn_data_notes(ds)
     with progress_reporter(progress) as report:
         model, runs = engine.fit_dataset(validated, ds, report)
     warn_if_useless(model, ds, runs)

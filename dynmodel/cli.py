@@ -350,7 +350,7 @@ def validate(
     for row in result.splits:
         table.add_row(row["split"], str(row["samples"]), str(row["scored"]), escape(", ".join(row["segments"])))
     out.print(table)
-    for note in ds.small_split_notes() + ds.overlap_notes() + ds.training_input_notes():
+    for note in ds.small_split_notes() + ds.overlap_notes() + ds.training_input_notes() + ds.artifact_notes():
         out.print(f"note: {note}", markup=False, soft_wrap=True)
     if isinstance(plan, list):  # family auto: what the search will do
         for line in plan:

@@ -171,6 +171,7 @@ def _fit_on_arrays(
     delay_form: Literal["copy", "difference"] = "copy",
     derived_inputs: Sequence[dict[str, Any]] = (),
     detrend: Sequence[Any] = (),
+    spikes: Literal["replace", "keep"] = "replace",
     progress: Progress | bool | None = None,
 ) -> Family:
     """Fit on measured inputs ``u`` and outputs ``y`` in physical units; returns self.
@@ -181,11 +182,13 @@ def _fit_on_arrays(
     as ``data.split: {train: 0.8, validation: 0.2}``), separate recordings ``(u_val, y_val)``, or
     None (the whole data trains; families that select on a validation split then refuse).
     ``cost``, ``seed`` and the remaining keywords are the spec's ``cost``, ``seed`` and ``data``
-    keys (scaling, transient, delay lines, derived inputs, detrending), applied exactly as
+    keys (scaling, transient, delay lines, derived inputs, detrending, spikes), applied exactly as
     ``dynmodel fit`` applies them (``cost`` None: the family's :attr:`default_cost`, as a spec
     without ``cost:``). ``sampling_time`` (s): None takes the step of a uniform pandas time index
     (DatetimeIndex, TimedeltaIndex), else 1 per sample. Channel names default to ``u`` / ``y`` (one channel) or ``u0``,
     ``u1``, ... ``progress``: a callback ``(stage, fraction, message)`` or True for progress on stderr.
+    Spikes replaced in the training and validation outputs (``spikes="replace"``, the default) and a clipped
+    output are told as :class:`~dynmodel.textfiles.DataNote` warnings; the arrays given are never changed.
 
     Afterwards ``model_`` holds the :class:`~dynmodel.model.FittedModel` (preprocessing, metrics of
     the train and validation splits in ``model_.metrics``); ``predict``, ``score`` and

@@ -409,6 +409,12 @@ class DataCommon(StrictModel):
         "unit std on the training split (named u~d; invariant to the level of u, e.g. where a position lies)",
     )
     noise: Optional[NoiseSpec] = None
+    spikes: Literal["replace", "keep"] = Field(
+        "replace",
+        description="isolated spikes in the training and validation outputs (a sample far from both its neighbours, "
+        "which agree with each other: a sensor glitch): replace each by the mean of its neighbours (noted), or keep "
+        "them as measured; test outputs are never changed",
+    )
     scaling: Literal["standard", "none"] = Field(
         "standard", description="standard: zero mean, unit std per channel from the training split"
     )

@@ -71,6 +71,7 @@ class FitResult:
         notes += self.dataset.small_split_notes(self.model.warmup)
         notes += self.dataset.overlap_notes()
         notes += self.dataset.training_input_notes()
+        notes += self.dataset.artifact_notes()
         notes += self.dataset.excursion_notes()
         notes += [
             note

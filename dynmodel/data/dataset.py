@@ -25,6 +25,7 @@ from .. import registry
 from ..errors import DataError, SpecError
 from ..spec import SPLITS
 from . import resample
+from .artifacts import Artifact, find_artifacts
 from .checks import check_signals
 from .finite import check_finite
 from .readers import read_columns
@@ -161,6 +162,8 @@ class Dataset:
     #: per split key: unscored samples at the start of each recording, simulated from the input alone (a
     #: steady-state test period preceded by a copy of itself)
     lead_in: dict[str, int] = field(default_factory=dict)
+    #: spikes and clipping found in the measured outputs when loaded (:func:`.artifacts.find_artifacts`)
+    artifacts: list[Artifact] = field(default_factory=list)
 
     def splits(self) -> list[str]:
         """Split keys with samples: train, validation, then the test sets in the spec's order."""
@@ -343,6 +346,10 @@ class Dataset:
             x.y[i : i + hi - lo], z.y[j : j + hi - lo], equal_nan=True
         )
         return hi - lo if same else 0
+
+    def artifact_notes(self) -> list[str]:
+        """:attr:`artifacts` as sentences for a user."""
+        return [a.note() for a in self.artifacts]
 
     def excursion_notes(self) -> list[str]:
         """:meth:`input_excursions` as sentences for a user."""
@@ -898,7 +905,9 @@ def load_dataset(spec: Spec | ArraySpec, sources: Mapping[str, LoadedSource] | N
     )
     _add_noise(ds, data.get("noise"), spec.seed)
     _check_sizes(ds, spec.source)
-    check_signals(ds, spec.source)
+    check_signals(ds, spec.source)  # a corrupt value is refused before it could pass for a spike
+    replace_spikes = data.get("spikes", "replace") == "replace"
+    ds.artifacts = find_artifacts(ds.recordings, ds.ranges, ds.output_names, replace_spikes)
     return ds
 
 
