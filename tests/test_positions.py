@@ -221,3 +221,30 @@ def test_a_velocity_changes_sign_and_the_narx_default_on_its_sign_validates_far_
     spec = validate_spec(raw, "<test>", tmp_path)
     ctx, _ = context(spec, load_dataset(spec), AutoParams(), None)
     assert list(ctx.positions) == ["v"] and not ctx.signed and not ctx.sign_inputs()
+
+
+def test_narx_neighbours_keep_every_one_of_more_terms_and_screen_them_refined():
+    """Half and twice the terms with the validation stop leave the size where the least-squares growth stopped
+    (EMPS: the same model, 0.0799 % screened, for 8 and 16 at most); the neighbours that keep all of 1.5 k and
+    2 k terms are screened with their weights refined on the free run, where their size pays (EMPS: 12 kept,
+    0.119 % least squares, 0.021 % refined, chosen)."""
+
+    class Fitted:  # eight terms on lags u 0..2, y 1..2, degree 3
+        embedding_ = type(
+            "E", (), {"regressors": [type("R", (), {"name": n, "lag": k})() for n, k in [("x", 0), ("f", 2)]]}
+        )
+        exponents_ = [np.array([[1, 0], [0, 1], [3, 0]])]
+        terms_ = [list(range(8))]
+        selection_: dict = {}
+
+    found = Found(Candidate("narx", {"max_terms": 8}, "a narx"), Fitted(), {}, 1.0)
+    grown = narx_search.neighbours(_ctx({}), found)
+    kept = {c.params["max_terms"]: c for c in grown if "terms kept" in c.summary}
+    assert sorted(kept) == [12, 16]
+    for m, cand in kept.items():
+        assert cand.params["patience"] is None and cand.screen_cost is None and cand.cost == "mse_inf"
+        assert cand.summary.endswith(f"all {m} terms kept (was 8)")
+    capped = {c.params["max_terms"] for c in grown if "at most" in c.summary}
+    assert capped == {4, 16}  # the validation-stopped sizes stay
+    Fitted.terms_ = [list(range(narx_search.KEPT_UP_TO + 1))]  # a large model: its refined screening costs
+    assert not any("terms kept" in c.summary for c in narx_search.neighbours(_ctx({}), found))
