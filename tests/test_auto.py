@@ -516,6 +516,10 @@ def test_cli_fit_prints_the_leaderboard_and_records_the_search(tmp_path, cli):
     assert all("verdict" in c for c in payload["search"]["candidates"])
     shown = cli("inspect", tmp_path / "auto-test.h5")
     assert "chosen by family auto" in shown.output
+    # the leaderboard's footnote names inspect --json for every candidate: it has them
+    assert cli("inspect", tmp_path / "auto-test.h5", "--json", tmp_path / "inspect.json").exit_code == 0
+    inspected = json.loads((tmp_path / "inspect.json").read_text())["search"]
+    assert inspected["candidates"] == payload["search"]["candidates"]
 
 
 def test_the_leaderboard_shows_why_a_candidate_was_rejected_in_full():

@@ -172,7 +172,9 @@ def inspect_model(model_path: str | Path, json_path: str | Path | None = None, f
     model = store.load(path)
     summary = describe(model, path)
     if model.search is not None:
-        summary["search"] = {k: model.search.get(k) for k in ("winner", "winner_summary", "notes", "interrupted")}
+        # every candidate with its parameters, scores and verdict: the leaderboard's footnote sends users here
+        kept = ("winner", "winner_summary", "notes", "interrupted", "budget", "seconds", "candidates")
+        summary["search"] = {k: model.search.get(k) for k in kept}
     note = summary_line(assess(model), model.spec.get("spec_file") or model.provenance.get("spec_file"))
     if json_file is not None:
         write_json(json_file, summary)
