@@ -87,6 +87,12 @@ def how_interrupted(exc: BaseException | None) -> tuple[str, int]:
     return "Ctrl-C", EXIT_INTERRUPTED
 
 
+def interruption(exc: BaseException | None) -> str:
+    """ "interrupted (Ctrl-C)" or "terminated (SIGTERM)": how a record says a run was stopped."""
+    how, _ = how_interrupted(exc)
+    return f"{'terminated' if how == 'SIGTERM' else 'interrupted'} ({how})"
+
+
 class ModelWarning(UserWarning):
     """A model fitted with the Python API that is of little use (worse than the training mean, ignoring its
     input, not carrying over to the test) or whose free run diverged: the line ``dynmodel fit`` prints

@@ -108,8 +108,24 @@ def _scored_and_mean_input(
     return rows, train_u.mean(axis=0) if train_u.shape[0] else np.zeros(len(ds.input_names))
 
 
+def _held_run(model: FittedModel, ds: Dataset, rec: int, mean_u: np.ndarray, held: dict[int, Run] | None) -> Run:
+    """The free run of recording ``rec`` with every input held at ``mean_u``, from ``held`` when it has it (one
+    run for :func:`input_dependence` and :func:`input_nonlinearity` together), stored there when computed."""
+    if held is not None and rec in held:
+        return held[rec]
+    r = ds.recordings[rec]
+    run = model.run(np.broadcast_to(mean_u, r.u.shape).copy(), r.y[: model.warmup] if model.warmup else None)
+    if held is not None:
+        held[rec] = run
+    return run
+
+
 def input_dependence(
-    model: FittedModel, ds: Dataset, split: str | None = None, runs: list[Run] | None = None
+    model: FittedModel,
+    ds: Dataset,
+    split: str | None = None,
+    runs: list[Run] | None = None,
+    held: dict[int, Run] | None = None,
 ) -> float | None:
     """mean over outputs of mean((y(u) - y(ū))^2) / var(y) on the scored samples of ``split``
     (default validation, else train), where y(ū) is the free run with every input held at its
@@ -125,13 +141,13 @@ def input_dependence(
         r = ds.recordings[rec]
         tune = r.y[:warm] if warm else None
         real = runs[rec] if runs is not None else model.run(r.u, tune)
-        held = model.run(np.broadcast_to(mean_u, r.u.shape).copy(), tune)
+        still = _held_run(model, ds, rec, mean_u, held)
         for rr, a, b in rows:
             if rr != rec:
                 continue
             if real.diverged_at is not None and real.diverged_at < b:
                 return None
-            moved.append(held.y[a:b] if held.diverged_at is None or held.diverged_at >= b else None)
+            moved.append(still.y[a:b] if still.diverged_at is None or still.diverged_at >= b else None)
             varied.append(real.y[a:b])
             measured.append(r.y[a:b])
     held_runs = [m for m in moved if m is not None]
@@ -146,7 +162,11 @@ def input_dependence(
 
 
 def input_nonlinearity(
-    model: FittedModel, ds: Dataset, split: str | None = None, runs: list[Run] | None = None
+    model: FittedModel,
+    ds: Dataset,
+    split: str | None = None,
+    runs: list[Run] | None = None,
+    held: dict[int, Run] | None = None,
 ) -> float | None:
     """How far the free run is from affine in its input: with y(u) the run on the input, y(ū) with every input
     held at its training mean and y(h) on the input halved about that mean (h = (u + ū) / 2, inside the range),
@@ -163,16 +183,16 @@ def input_nonlinearity(
         r = ds.recordings[rec]
         tune = r.y[:warm] if warm else None
         full = runs[rec] if runs is not None else model.run(r.u, tune)
-        held = model.run(np.broadcast_to(mean_u, r.u.shape).copy(), tune)
+        still = _held_run(model, ds, rec, mean_u, held)
         mid = model.run(0.5 * (r.u + mean_u), tune)
         for rr, a, b in rows:
             if rr != rec:
                 continue
-            if any(x.diverged_at is not None and x.diverged_at < b for x in (full, held, mid)):
+            if any(x.diverged_at is not None and x.diverged_at < b for x in (full, still, mid)):
                 return None
-            line = 0.5 * (full.y[a:b] + held.y[a:b])
+            line = 0.5 * (full.y[a:b] + still.y[a:b])
             gap.append(mid.y[a:b] - line)
-            half.append(0.5 * (full.y[a:b] - held.y[a:b]))
+            half.append(0.5 * (full.y[a:b] - still.y[a:b]))
     moved = np.mean(np.concatenate(half) ** 2, axis=0)
     if not np.all(moved > 0) or not np.isfinite(moved).all():
         return None

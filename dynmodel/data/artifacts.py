@@ -99,17 +99,33 @@ def _independent(candidate: np.ndarray, near: np.ndarray) -> bool:
     return float(near[candidate].mean()) <= base + 3.0 * np.sqrt(base * (1.0 - base) / count)
 
 
-def _candidates(y: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample of one output series ``y`` (n,) driven by inputs ``u`` (n, m): whether it is sharp, its
-    neighbours agree and it comes and goes abruptly; and whether an input moves sharply next to it."""
+def _input_moves(u: np.ndarray) -> np.ndarray:
+    """Per sample of inputs ``u`` (n, m): whether an input moves sharply at t - 1, t or t + 1 (its second
+    difference beyond :func:`_bound`)."""
+    near = np.zeros(u.shape[0], dtype=bool)
+    for j in range(u.shape[1] if u.ndim == 2 else 0):
+        col = u[:, j]
+        if u.shape[0] < 3 or not np.all(np.isfinite(col)):
+            continue
+        du = _second_difference(col)
+        moves = np.abs(du) > _bound(du, col)
+        near |= moves
+        near[1:] |= moves[:-1]
+        near[:-1] |= moves[1:]
+    return near
+
+
+def _candidates(y: np.ndarray) -> np.ndarray:
+    """Per sample of one output series ``y`` (n,): whether it is sharp, its neighbours agree, it comes and
+    goes abruptly and its value is rare (the module docstring's tests on the output alone)."""
     n = y.shape[0]
     none = np.zeros(n, dtype=bool)
     if n < 5 or not np.all(np.isfinite(y)):
-        return none, none.copy()
+        return none
     d = _second_difference(y)
     bound = _bound(d, y)
     if bound <= 0:
-        return none, none.copy()
+        return none
     sharp = np.abs(d) > bound
     sharp[[0, -1]] = False
     agree = np.zeros(n, dtype=bool)
@@ -118,28 +134,16 @@ def _candidates(y: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     step = np.abs(np.diff(y))
     around = np.maximum(step[:-3], step[3:])  # |y(t-1) - y(t-2)| and |y(t+2) - y(t+1)| for t = 2 .. n-3
     abrupt[2:-2] = np.abs(d[2:-2]) > SPIKE_ABRUPT * around
-    near = np.zeros(n, dtype=bool)  # an input moves sharply at t - 1, t or t + 1
-    for j in range(u.shape[1] if u.ndim == 2 else 0):
-        col = u[:, j]
-        if not np.all(np.isfinite(col)):
-            continue
-        du = _second_difference(col)
-        moves = np.abs(du) > _bound(du, col)
-        near |= moves
-        near[1:] |= moves[:-1]
-        near[:-1] |= moves[1:]
     candidate = sharp & agree & abrupt
-    return candidate & _rare_values(y, d, candidate), near
+    return candidate & _rare_values(y, d, candidate)
 
 
-def spike_samples(series: list[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
-    """The isolated spikes (sample indices) of each ``(y, u)`` in ``series``: pieces of one output column, each
-    ``y`` (n,) with its inputs ``u`` (n, m). Whether glitches are independent of the input is decided over all
-    pieces together (a property of the sensor); see the module docstring."""
-    pieces = [_candidates(y, u) for y, u in series]
-    candidate = np.concatenate([c for c, _ in pieces]) if pieces else np.zeros(0, dtype=bool)
-    near = np.concatenate([m for _, m in pieces]) if pieces else np.zeros(0, dtype=bool)
-    independent = _independent(candidate, near)
+def _decide(pieces: list[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+    """The spikes (sample indices) of each ``(candidates, input moves)`` piece of one output column. Whether
+    glitches are independent of the input is decided over all pieces together (a property of the sensor)."""
+    if not pieces:
+        return []
+    independent = _independent(np.concatenate([c for c, _ in pieces]), np.concatenate([m for _, m in pieces]))
     found = []
     for c, m in pieces:
         hits = np.flatnonzero(c if independent else c & ~m)
@@ -149,7 +153,7 @@ def spike_samples(series: list[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarra
 
 def spikes(y: np.ndarray, u: np.ndarray) -> np.ndarray:
     """The isolated spikes (sample indices) of one output series ``y`` (n,) driven by inputs ``u`` (n, m)."""
-    return spike_samples([(y, u)])[0]
+    return _decide([(_candidates(y), _input_moves(u))])[0]
 
 
 def clipping(y: np.ndarray) -> list[Clip]:
@@ -173,19 +177,24 @@ def clipping(y: np.ndarray) -> list[Clip]:
 
 #: sample positions named in a note
 NAMED = 3
+#: the splits whose outputs a model is fitted and chosen on: spikes there are replaced
+FITTED = ("train", "validation")
 
 
 @dataclass
 class Artifact:
     """Spikes or clipping found in one output of one split, as :meth:`note` tells the user."""
 
-    kind: str  # "spikes" or "clipping"
     split: str
     output: str
     #: spikes: (recording name, sample index in its file) of each; clipping: empty
     where: list[tuple[str, int]]
     replaced: bool = False
     clip: Clip | None = None
+
+    @property
+    def kind(self) -> str:
+        return "spikes" if self.clip is None else "clipping"
 
     def note(self) -> str:
         whose = "training" if self.split == "train" else self.split
@@ -214,7 +223,7 @@ class Artifact:
                 f"{what}: each was replaced by the mean of its neighbours, so that a sensor glitch is not learned as "
                 f"the system's answer{scores}; data.spikes: keep (spikes='keep' on arrays) fits them as measured"
             )
-        if self.split in ("train", "validation"):
+        if self.split in FITTED:
             return f"{what}, kept as measured (data.spikes: keep): if they are sensor glitches the model learns them"
         return f"{what}: the {whose} scores include them (test outputs are never changed)"
 
@@ -230,30 +239,31 @@ def find_artifacts(
     found: list[Artifact] = []
     copied: set[int] = set()
     pieces = [(split, r, a, b) for split, rngs in ranges.items() for r, a, b in rngs]
-    fitted_pieces = [i for i, (split, *_) in enumerate(pieces) if split in ("train", "validation")]
+    fitted = [i for i, (split, *_) in enumerate(pieces) if split in FITTED]
+    moves = [_input_moves(recordings[r].u[a:b]) for _, r, a, b in pieces]
     for j, name in enumerate(outputs):
-        series = [(recordings[r].y[a:b, j], recordings[r].u[a:b]) for _, r, a, b in pieces]
+        candidates = [_candidates(recordings[r].y[a:b, j]) for _, r, a, b in pieces]
         # the test outputs weigh in on the test's own note only, never on what is fitted
-        hits = spike_samples(series)
-        for i, h in zip(fitted_pieces, spike_samples([series[i] for i in fitted_pieces])):
+        hits = _decide(list(zip(candidates, moves)))
+        for i, h in zip(fitted, _decide([(candidates[i], moves[i]) for i in fitted])):
             hits[i] = h
         for split in ranges:
-            fitted = split in ("train", "validation")
             where: list[tuple[str, int]] = []
+            replace = split in FITTED and replace_spikes
             for (s, r, a, _), h in zip(pieces, hits):
                 if s != split or not h.size:
                     continue
                 rec, at = recordings[r], a + h
-                if fitted and replace_spikes:
+                if replace:
                     if r not in copied:  # never the caller's arrays (the Python API's, a benchmark's)
                         rec = recordings[r] = dataclasses.replace(rec, y=rec.y.copy())
                         copied.add(r)
                     rec.y[at, j] = 0.5 * (rec.y[at - 1, j] + rec.y[at + 1, j])
                 where += [(_file_of(rec), int(rec.offset + t)) for t in at]
             if where:
-                found.append(Artifact("spikes", split, name, where, replaced=fitted and replace_spikes))
+                found.append(Artifact(split, name, where, replaced=replace))
     for j, name in enumerate(outputs):
         train = [recordings[r].y[a:b, j] for r, a, b in ranges.get("train", [])]
         if train:
-            found += [Artifact("clipping", "train", name, [], clip=c) for c in clipping(np.concatenate(train))]
+            found += [Artifact("train", name, [], clip=c) for c in clipping(np.concatenate(train))]
     return found

@@ -27,7 +27,7 @@ from ..spec import SPLITS
 from . import resample
 from .artifacts import Artifact, find_artifacts
 from .checks import check_signals
-from .finite import check_finite
+from .finite import check_finite, non_finite
 from .readers import read_columns
 
 if TYPE_CHECKING:
@@ -445,7 +445,9 @@ def _file_recordings(
             check_finite(_only(data[:, :n_in], rows), names[:n_in], str(path))
             check_finite(np.where(np.isnan(data[:, n_in:]), 0.0, _only(data[:, n_in:], rows)), names[n_in:], str(path))
         else:
-            check_finite(_only(data, rows), names, str(path), _gap_fix(data, rows))
+            problem = non_finite(_only(data, rows), names)
+            if problem is not None:  # the segments hint reads the whole file: only when there is a gap
+                raise DataError(problem, str(path), _gap_fix(data, rows))
         segments = src.get("segments") or [(0, data.shape[0])]
         if t is not None and src.get("segments") and not src.get("resample"):
             # recordings cut out of one file: only each one's own stamps need be uniform (the cuts may skip gaps)

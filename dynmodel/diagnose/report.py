@@ -64,10 +64,10 @@ def extended_spec(result: Diagnosis, folder: Path) -> dict[str, Any] | None:
     return out
 
 
-def write_extended(result: Diagnosis, folder: Path, place: Path | None = None) -> Path | None:
+def write_extended(result: Diagnosis, folder: Path, place: Path) -> Path | None:
     """``extended.yaml`` in ``folder``; ``place``: the folder the report ends up in (where the spec's model
     goes), when ``folder`` is a temporary one."""
-    spec = extended_spec(result, place or folder)
+    spec = extended_spec(result, place)
     if spec is None:
         return None
     folder.mkdir(parents=True, exist_ok=True)
@@ -161,7 +161,7 @@ def _pct(v: Any) -> str:
     return "–" if v is None else f"{100 * v:.1f} %"
 
 
-def write_report(result: Diagnosis, folder: Path, place: Path | None = None) -> Path:
+def write_report(result: Diagnosis, folder: Path, place: Path) -> Path:
     """index.md and the figures in ``folder``; returns the index path. ``place``: the folder the report ends
     up in, when ``folder`` is a temporary one (:func:`write_report_folder`)."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -308,7 +308,7 @@ def write_report(result: Diagnosis, folder: Path, place: Path | None = None) -> 
         lines += ["## Gain on the held-out test split", ""] + _gain_lines(result.gain) + [""]
         if final is not None and result.gain:
             lines += ["![before and after](before_after.png)", ""]
-        extended = extended_spec(result, place or folder)
+        extended = extended_spec(result, place)
         if extended is not None:
             lines += [
                 f"## Extended spec (`{EXTENDED}`, run with `dynmodel fit {EXTENDED}`)",

@@ -69,6 +69,13 @@ SETTLE = 200
 #: a candidate whose run is this close to affine in its input (:func:`dynmodel.usefulness.input_nonlinearity`)
 #: counts as a linear model ...
 AFFINE = 1e-4
+
+
+def affine(nonlinearity: float | None) -> bool:
+    """Whether a candidate's measured ``input_nonlinearity`` says its free run is affine in its input."""
+    return nonlinearity is not None and nonlinearity < AFFINE
+
+
 #: ... and under the linear-system band its own band is wider by this many training output range widths on each
 #: side (a lightly damped resonance tested on another input realization: the true output goes 0.53 widths beyond)
 AFFINE_BAND = 0.5

@@ -38,11 +38,11 @@ from ..data.dataset import Dataset, last_samples
 from ..data.delay import dead_times
 from ..data.derived import position_like
 from ..data.repeats import repeat_note, repeats_training
-from ..errors import DynmodelError, how_interrupted
+from ..errors import DynmodelError, interruption
 from ..extensions import merge
 from ..family import Progress, no_progress
 from ..spec import IN_MEMORY
-from .checks import AFFINE, failed_split, linear_band
+from .checks import affine, failed_split, linear_band
 from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, REFERENCE_WORKERS, TASK_OVERHEAD, Budget, Group
 from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
@@ -724,7 +724,7 @@ class Search:
         if not screened:
             return
         best = min(s.score for s in screened)
-        linear = [s.score for s in screened if s.nonlinearity is not None and s.nonlinearity < AFFINE]
+        linear = [s.score for s in screened if affine(s.nonlinearity)]
         reference = self._reference_score()
         # the linear reference, or a candidate whose run is affine in its input, validates about as the best
         near = min([x for x in [reference, *linear] if x is not None], default=math.inf)
@@ -1083,8 +1083,7 @@ class Search:
             if not self.interrupted:
                 self._stage_moves()
         except KeyboardInterrupt as exc:
-            how, _ = how_interrupted(exc)
-            self.interrupted = f"{'terminated' if how == 'SIGTERM' else 'interrupted'} ({how})"
+            self.interrupted = interruption(exc)
             self._drop_abandoned()  # the stage's running fits would hold the workers the best one's fit needs
         model = None
         tried: set[str] = set()
@@ -1096,10 +1095,9 @@ class Search:
             try:
                 model = self._final_model(key, level)
             except KeyboardInterrupt as exc:
-                how, _ = how_interrupted(exc)
                 self.interrupted = (
-                    f"{'terminated' if how == 'SIGTERM' else 'interrupted'} ({how}) while the best candidate so far "
-                    f"({self.entries[key].label}) was fitted on the whole training split"
+                    f"{interruption(exc)} while the best candidate so far ({self.entries[key].label}) was fitted "
+                    "on the whole training split"
                 )
                 model = None
                 break

@@ -30,6 +30,7 @@ from .views import Layout, test_start, view
 
 if TYPE_CHECKING:
     from ..data.dataset import Dataset
+    from ..model import Run
     from ..spec import Spec
 
 
@@ -222,7 +223,7 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any, continued: Any = No
 def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
     from .. import engine, protocol
     from ..usefulness import input_dependence, input_nonlinearity
-    from .checks import AFFINE, band_checks, complexity
+    from .checks import affine, band_checks, complexity
     from .select import moment_score
 
     v = view(ds, task.layout)
@@ -248,14 +249,14 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
     result.moments = None if errors is None else validation_moments(v, *errors, continued)
     if fresh is not None and result.moments is not None:  # the score with the fresh start mixed in
         result.score = moment_score([result])
+    held: dict[int, Run] = {}  # the held-input runs, shared by the two measures
     try:
-        result.nonlinearity = None if bad else input_nonlinearity(model, v, runs=runs)
+        result.nonlinearity = None if bad else input_nonlinearity(model, v, runs=runs, held=held)
     except (ValueError, FloatingPointError):
         result.nonlinearity = None
-    affine = result.nonlinearity is not None and result.nonlinearity < AFFINE
-    result.checks = band_checks(model, ds, task.envelope, affine=affine)
+    result.checks = band_checks(model, ds, task.envelope, affine=affine(result.nonlinearity))
     try:
-        result.dependence = None if bad else input_dependence(model, v, runs=runs)
+        result.dependence = None if bad else input_dependence(model, v, runs=runs, held=held)
     except (ValueError, FloatingPointError):
         result.dependence = None
     result.complexity = complexity(model)

@@ -35,6 +35,7 @@ candidate it grows from.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from dynmodel.search.space import Candidate, Found, SearchContext
@@ -136,21 +137,14 @@ def _output_error(ctx: SearchContext, L: int = 2, every_term: bool = False) -> C
     screening fit too: least squares alone is the ARX model, biased in free run), no output clip (a linear
     model extrapolates in proportion)."""
     pool = pool_size(_regressors(ctx, L), 1, True)
-    full, _ = _work(ctx, pool, pool)
     unbounded = {y: [None, None] for y in ctx.output_names}  # as bounds: null (kept as written: the candidate's key)
     params: dict[str, Any] = {"lags": _table(ctx, L), "degree": 1, "max_terms": pool, "initial": "settled"}
     if every_term:
         params["patience"] = None
     every = ", every term" if every_term else ""
-    return Candidate(
-        family=NAME,
-        params={**params, "bounds": unbounded},
-        summary=f"linear output error settled at its first input: inputs 0..{L}, outputs 1..{L}{every}, no output clip",
-        cost="mse_inf",
-        work=full,
-        screen_work=full,
-        complexity=float(pool),
-        stochastic=False,
+    summary = f"linear output error settled at its first input: inputs 0..{L}, outputs 1..{L}{every}, no output clip"
+    return _candidate(
+        ctx, summary, {**params, "bounds": unbounded}, pool, pool, refined_screen=True, complexity=float(pool)
     )
 
 
@@ -165,20 +159,18 @@ def _own_output_error(ctx: SearchContext, L: int = 2) -> Candidate:
     lagged = [f"{u}[t]" if m == 0 else f"{u}[t-{m}]" for u in inputs for m in range(L + 1)]
     terms = {y: ["1", *lagged, *(f"{y}[t-{i}]" for i in range(1, L + 1))] for y in ctx.output_names}
     each = 1 + len(lagged) + L
-    full, _ = _work(ctx, each, each)
+    cand = _candidate(
+        ctx,
+        f"linear output error, each output on its own past: inputs 0..{L}, own output 1..{L}, no output clip",
+        {"terms": terms, "initial": "settled", "bounds": {y: [None, None] for y in ctx.output_names}},
+        each,
+        each,
+        refined_screen=True,
+        complexity=float(each * ctx.n_outputs),
+    )
     # the outputs' weights are refined together: measured 2.7 - 3.2 x the plan of one output's at a time (6
     # outputs, 24 000 training samples: 67 s and 154 s for orders 2 and 4, planned 21 and 57)
-    full *= max(1.0, ctx.n_outputs / 2)
-    return Candidate(
-        family=NAME,
-        params={"terms": terms, "initial": "settled", "bounds": {y: [None, None] for y in ctx.output_names}},
-        summary=f"linear output error, each output on its own past: inputs 0..{L}, own output 1..{L}, no output clip",
-        cost="mse_inf",
-        work=full,
-        screen_work=full,
-        complexity=float(each * ctx.n_outputs),
-        stochastic=False,
-    )
+    return replace(cand, work=(cand.work or 0.0) * max(1.0, ctx.n_outputs / 2))
 
 
 def _after_dead_times(ctx: SearchContext, pool: int, terms: int) -> Candidate:
