@@ -167,6 +167,7 @@ class _Recorder:
         self.models: dict[str, ModelArrays] = {}
         self.warnings: dict[str, int] = {}
         self._last_write = 0.0
+        self._unwritten: set[str] = set()  # records counted whose point file is not written yet
         self.sort_key = choose_sort(list(records.values()), the_plan.metrics)
         self.best_key = self._rank_best()
 
@@ -190,6 +191,7 @@ class _Recorder:
         for text in result.warnings:
             self.warnings[text] = self.warnings.get(text, 0) + 1
         self.records[result.key] = record
+        self._unwritten.add(result.key)
         if result.status == "ok" and "validation" not in record["metrics"] and not self.sort_key.note:
             self.sort_key = choose_sort(list(self.records.values()), self.plan.metrics)  # falls back to train
             self.best_key = self._rank_best()
@@ -204,6 +206,7 @@ class _Recorder:
                 self._drop(previous)
         if self.folder is not None:
             self.folder.write_record(record)
+        self._unwritten.discard(result.key)
 
     def _store(self, key: str, payload: ModelArrays) -> str | None:
         if self.folder is None:
@@ -241,7 +244,13 @@ class _Recorder:
         return res
 
     def write(self, force: bool = False) -> None:
-        """Rewrite results.csv / results.json (at most every RESULTS_INTERVAL seconds unless forced)."""
+        """Rewrite results.csv / results.json (at most every RESULTS_INTERVAL seconds unless forced); forced, first
+        the point file of every record counted but not yet written (a Ctrl-C or SIGTERM between the two: the
+        summary said "2 of 6 points finished" over one point file, and --resume would fit the other again)."""
+        if force and self.folder is not None:
+            for key in sorted(self._unwritten):
+                self.folder.write_record(self.records[key])
+            self._unwritten.clear()
         now = time.monotonic()
         if self.folder is not None and (force or now - self._last_write >= RESULTS_INTERVAL):
             res = self.result()
