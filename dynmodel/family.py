@@ -452,6 +452,14 @@ class Family(ABC):
         larger answer only to leave out a full fit the budget cannot take (docs/plugins.md)."""
         return None
 
+    def frozen_config(self) -> dict[str, Any] | None:
+        """How to fit this fitted model's configuration again on other data without a validation split, every
+        choice it made on validation frozen (a selected structure, a tuned factor): ``{"params": {...}, "cost":
+        name or None}`` (None: the cost it was fitted with); None (the default) when it cannot. ``family: auto``
+        refits its choice so on the training and validation samples together, so that the model it keeps learns
+        from every sample the search may read (docs/auto.md)."""
+        return None
+
     def check_fitted(self) -> None:
         if not any(k.endswith("_") and not k.startswith("_") for k in vars(self)):
             raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit() first")

@@ -840,12 +840,16 @@ def test_long_data_without_a_validation_split_is_ranked_on_a_held_out_tail(tmp_p
     assert only_continued != pytest.approx(held_out, rel=1e-6)  # the fresh start counted (a NARX: a little)
 
 
-def test_short_data_without_a_validation_split_keep_the_fit_validated_last(tmp_path):
+def test_short_data_without_a_validation_split_keep_the_fit_validated_last(tmp_path, monkeypatch):
     """Short data cross-validated in blocks, with no validation split (``split: {train: 1.0}`` and a test
     file, as a benchmark that gives only training and test data): the chosen candidate was refitted on the
     whole training split, where the narx default's term search (and the annealed network's schedule) has
     nothing to stop on, and the search failed after all its work ("failed when fitted on the whole training
-    split"). The fit of the last fold, validated on the block held out last, is kept, and said so."""
+    split"). Where the family cannot freeze its choices, the fit of the last fold, validated on the block held
+    out last, is kept, and said so."""
+    from dynmodel_plugins.narx import Narx
+
+    monkeypatch.setattr(Narx, "frozen_config", lambda self: None)
     _data(tmp_path, n=1500)
     raw = _raw(families=["narx"], budget=4)
     raw["data"]["split"] = {"train": 1.0}
@@ -874,6 +878,56 @@ def test_short_data_without_a_validation_split_keep_the_fit_validated_last(tmp_p
     np.testing.assert_array_equal(
         model.run(test.u, test.y[:warm] if warm else None).y, alone.run(test.u, test.y[:warm] if warm else None).y
     )
+
+
+def test_the_choice_is_fitted_again_on_every_fitting_sample_with_its_choices_frozen(tmp_path):
+    """The chosen configuration is fitted again on the training and validation samples together (here: short
+    data without a validation split, so on the whole training split, the block held out included), its terms
+    and ridge factor as chosen on validation: the model is that fit, it records its training on every sample,
+    and the notes say its scores there are no hold-out."""
+    _data(tmp_path, n=1500)
+    raw = _raw(families=["narx"], budget=4)
+    raw["data"]["split"] = {"train": 1.0}
+    model, ds = _fit(raw, tmp_path)
+    rec = model.search
+    refit = rec["refit"]
+    assert refit["refitted"] and refit["samples"] == ds.n_scored("train")
+    winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
+    assert refit["validation_nmse"] == winner["validation_nmse"]
+    assert any("fitted again on the whole training split" in n for n in rec["notes"])
+    assert not any(n.startswith("there is no validation split, so the model kept is") for n in rec["notes"])
+    assert len(model.train_input) == ds.n_scored("train")  # every training sample, the held-out block included
+    assert model.spec["model"]["params"]["terms"] == refit["params"]["terms"]
+    spec = validate_spec({**raw, "model": {"family": "narx", "params": refit["params"]}}, "<test>", tmp_path)
+    if refit["cost"]:
+        spec = validate_spec({**raw, "model": spec.resolved()["model"], "cost": refit["cost"]}, "<test>", tmp_path)
+    alone, _ = engine.fit_dataset(spec, view(ds, Layout("all")), no_progress)
+    test = ds.recordings[-1]
+    warm = model.warmup
+    start = test.y[:warm] if warm else None
+    np.testing.assert_array_equal(model.run(test.u, start).y, alone.run(test.u, start).y)
+    assert model.metrics["test"]["nmse"] < 1.0
+
+
+def test_narx_freezes_its_terms_and_ridge_factor_for_a_refit():
+    """Narx.frozen_config: the same training data without a validation split give the same terms and weights;
+    a ridge factor chosen on validation becomes a number; weights the validation kept at least squares give
+    cost mse1."""
+    from dynmodel_plugins.narx import Narx
+
+    u, y = narx(3000, 3)
+    for given in ({"degree": 2}, {"degree": 1, "ridge": "auto"}):
+        fitted = Narx(**given).fit(u, y, validation=0.2, cost="mse_inf")
+        config = fitted.frozen_config()
+        assert config is not None and set(config["params"]["terms"]) == {"y"}
+        assert "degree" not in config["params"] and "lags" not in config["params"]
+        if "ridge" in given:
+            assert config["params"]["ridge"] == pytest.approx(float(np.ravel(fitted.ridge_["alpha"])[0]))
+        kept_ls = any(step.get("kept") == "least squares" for step in fitted.refinement_)
+        assert config["cost"] == ("mse1" if kept_ls else None)
+        again = Narx(**config["params"]).fit(u[:2400], y[:2400], validation=None, cost=config["cost"] or "mse_inf")
+        assert again.terms_ == fitted.terms_
+        np.testing.assert_allclose(again.weights_, fitted.weights_, rtol=1e-6, atol=1e-9)
 
 
 def _three_recordings(tmp_path: Path, budget: float) -> tuple[dict[str, Any], Any]:
@@ -1199,6 +1253,23 @@ def test_the_choice_prefers_a_model_that_uses_its_input_and_the_simpler_one_when
     ref = choose({"a": _s(1.0, 50), "b": _s(1.08, 5)}, labels, reference=1.05)
     assert ref.key == "b" and "linear reference" in ref.cautious[0]
     assert choose({"a": _s(math.inf, 5)}, labels).key is None
+
+
+def test_the_choice_prefers_a_model_without_an_output_clip_its_input_drives_it_into_when_one_validates_as_well():
+    """Under the linear-system band (the system is about linear), a model whose peaks an input cuts flat at an
+    output clip is set aside when an unclipped one validates within 25 %, and kept when none does."""
+    labels = {k: k for k in "abc"}
+    clipped, whole, far = _s(1.0, 7), _s(1.01, 7), _s(2.0, 3)
+    clipped.clipped = "test"
+    c = choose({"a": clipped, "b": whole}, labels)
+    assert c.key == "b" and "cut flat at a clip on the test input" in c.notes[0]
+    assert c.verdicts["a"].startswith("set aside: its output is cut flat")
+    kept = choose({"a": clipped, "c": far}, labels)
+    assert kept.key == "a" and not kept.notes
+    small = _s(1.05, 3)  # a smaller clipped one inside a cautious tie: not taken for its size
+    small.clipped = "test"
+    c = choose({"a": whole, "b": small}, labels, short_validation="only 40 validation samples")
+    assert c.key == "a" and c.verdicts["b"].startswith("set aside")
 
 
 def _blocks(score: float, values: list[float]) -> Summary:

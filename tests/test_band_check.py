@@ -70,6 +70,31 @@ def test_the_linear_system_band_admits_a_moving_run_not_one_held_at_a_clip(ds):
     assert checks._outside(clipped, lo, hi, lo, hi, width) == checks._leaves(clipped, lo, hi, width)
 
 
+def test_peaks_cut_flat_at_a_clip_are_named_and_a_run_at_rest_under_a_held_input_passes(ds):
+    """Beyond the strict band, a run whose peaks are cut flat at the same value (an output clip), each for a few
+    samples, is named as clipped (not a band failure: the choice prefers an unclipped model that validates about
+    as well); the same run with its peaks whole is not. A run standing at one value beyond the strict band
+    fails the linear-system band while its input moves (held at a clip), not while its input is held (a linear
+    plant at rest there)."""
+    lo, hi, width = checks.band(ds)
+    low, high = lo - 2.0 * width, hi + 2.0 * width
+    t = np.arange(N)
+    u = ((1.0 + t / N) * np.sin(t / 7.0))[:, None]  # a growing sine: peaks beyond the training amplitude
+    whole = 0.5 + 1.2 * u  # a linear model's run: its peaks reach 2.9
+    cut = np.clip(whole, -0.5, 1.5)  # every peak above 1.5 cut flat there
+    first = int(np.argmax(cut[:, 0] >= 1.5))
+    assert checks._flat_top(whole, u, lo, hi) is None
+    assert checks._flat_top(cut, u, lo, hi) == first
+    assert checks._flat_top(np.minimum(whole, 1.45), u, lo, hi) is None  # a clip inside the strict band: not named
+    assert checks._longest_run(cut[:, 0] >= 1.5) <= checks.BRIEF  # each peak briefly at the clip ...
+    assert checks._outside(cut, low, high, lo, hi, width, u) is None  # ... inside the wider band: no failure
+    held_input = np.where(t[:, None] < 1000, u, 2.0)
+    at_rest = np.where(t < 1000, 0.5, 2.9)[:, None]  # the plant settled at a held input beyond the training range
+    assert checks._flat_top(at_rest, held_input, lo, hi) is None
+    assert checks._outside(at_rest, low, high, lo, hi, width, held_input) is None
+    assert checks._outside(at_rest, low, high, lo, hi, width, u) == 1001  # standing still while its input moves
+
+
 class _KickedByItsStart:
     """A one-lag model y[t] = u[t] + e (0.5 + 10 |u[t] - u[t-1]| |e|), e = y[t-1] - u[t-1]: settled (e = 0) it
     follows its input; a state far from it decays while the input is held, and diverges while it moves."""

@@ -111,9 +111,14 @@ def fit_auto(spec: Spec, ds: Dataset, progress: Progress = no_progress):
         "output": user["output"],
     }
     model.spec["data"] = {**user["data"], **{k: v for k, v in model.spec["data"].items() if k in _DATA_PATCH_KEYS}}
-    train_u, lengths = ds.concat_inputs("train")
+    trained = ds
+    if (record.get("refit") or {}).get("refitted"):  # fitted again on the training and validation samples
+        from .views import Layout, view
+
+        trained = view(ds, Layout("all"))
+    train_u, lengths = trained.concat_inputs("train")
     model.train_input, model.train_input_lengths = train_u, lengths
-    model.train_output = ds.concat_outputs("train")
+    model.train_output = trained.concat_outputs("train")
     model.provenance = {**engine._provenance(spec, ds), "search_seconds": record.get("seconds")}
     progress("evaluate", None, "free runs of the chosen model over every recording")
     protocol.check_warmup(model.family, ds, spec.source)

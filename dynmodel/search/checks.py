@@ -18,7 +18,9 @@ forgiving a run there while that input lies beyond (EMPS: 58 %) let a NARX model
 RMSE where the band kept one with 10.5 mm. Unless the system is about linear (the search decides: the linear
 reference, or a candidate affine in its input, validates about as well as the best, ``Search._decide_band``): then a split's band also covers the range of
 the linear reference's own free run on that split's input, widened as the training range is (the
-*linear-system band*, given as ``checks["wide"]`` where it differs). A linear model's output goes beyond the
+*linear-system band*, given as ``checks["wide"]`` where it differs; a run standing still beyond the strict band
+while its input moves, held at an output clip, still leaves it, and one cut flat at a clip there is named in
+``checks["wide"]["clipped"]``, see :func:`_flat_top`). A linear model's output goes beyond the
 training range as far as its input, or its drift (an integrator: a cart's position), takes it; without it, a
 linear plant tested at three times its training amplitude had every linear candidate rejected, and a
 saturating network kept. A candidate whose own run is affine in its input (:data:`AFFINE`) gets
@@ -116,9 +118,12 @@ def _leaves(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray, width: np.ndarray) 
     return None
 
 
-def _held(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray, width: np.ndarray) -> int | None:
+def _held(
+    seg: np.ndarray, lo: np.ndarray, hi: np.ndarray, width: np.ndarray, u: np.ndarray | None = None
+) -> int | None:
     """The first sample of a stretch of more than :data:`BRIEF` samples where the run ``seg`` stands still
-    beyond the strict band (lo, hi): held at an output clip (a linear system's run moves), or None."""
+    beyond the strict band (lo, hi) while its input ``u`` moves (None: not compared): held at an output clip
+    (a linear system's run moves with its input, and stands still only where its input is held), or None."""
     if len(seg) < 2:
         return None
     with np.errstate(invalid="ignore"):
@@ -127,15 +132,47 @@ def _held(seg: np.ndarray, lo: np.ndarray, hi: np.ndarray, width: np.ndarray) ->
     held = np.asarray(still & beyond)
     if _longest_run(held) <= BRIEF:
         return None
-    return int(np.argmax(held)) + 1
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], held.astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2]):
+        if b - a > BRIEF and (u is None or not (u[a + 1 : b + 1] == u[a + 1]).all()):
+            return int(a) + 1
+    return None
 
 
-def _outside(seg: np.ndarray, low: np.ndarray, high: np.ndarray, lo: np.ndarray, hi: np.ndarray, width: np.ndarray):
+def _flat_top(seg: np.ndarray, u: np.ndarray | None, lo: np.ndarray, hi: np.ndarray) -> int | None:
+    """The first sample of a flat top beyond the strict band (lo, hi): the run's extreme beyond it reached at two
+    samples or more whose inputs differ (an output clip cut every peak there; a run's own dynamics do not come
+    back to the same extreme exactly, and a run at rest under a held input is no clip), or None. ``u``: the
+    inputs of the same samples (None: not compared)."""
+    first: int | None = None
+    with np.errstate(invalid="ignore"):
+        for j in range(seg.shape[1]):
+            col = seg[:, j]
+            for beyond, pick in ((col > hi[j], np.max), (col < lo[j], np.min)):
+                if beyond.sum() < 2:
+                    continue
+                at = np.flatnonzero(col == pick(col[beyond]))
+                if len(at) < 2 or (u is not None and (u[at] == u[at[0]]).all()):
+                    continue
+                first = int(at[0]) if first is None else min(first, int(at[0]))
+    return first
+
+
+def _outside(
+    seg: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    width: np.ndarray,
+    u: np.ndarray | None = None,
+):
     """:func:`_leaves` the band (low, high); where that is wider than the strict band (lo, hi), also a run held
-    still beyond the strict band (:func:`_held`: at an output clip the wider band would hide)."""
+    still beyond the strict band while its input ``u`` moves (:func:`_held`: at an output clip the wider band
+    would hide)."""
     first = _leaves(seg, low, high, width)
     if (low < lo).any() or (high > hi).any():
-        held = _held(seg, lo, hi, width)
+        held = _held(seg, lo, hi, width, u)
         if held is not None and (first is None or held < first):
             return held
     return first
@@ -213,18 +250,26 @@ def band_checks(
             for rec, a, b in ds.scored(split, warm):
                 y, how, outputs = runs[rec]
                 entry["start"] = entry["start"] or how
-                first = _outside(y[a:b], low, high, lo, hi, width)
+                u = ds.recordings[rec].u[a:b]
+                seg = y[a:b]
+                first = _outside(seg, low, high, lo, hi, width, u)
                 if first is not None and how == "either":  # from rest it leaves: does it settled?
                     if rec not in settled:
                         settled[rec] = _run(model, ds.recordings[rec], outputs, SETTLE)
-                    if _outside(settled[rec][a:b], low, high, lo, hi, width) is None:
-                        first = None
+                    if _outside(settled[rec][a:b], low, high, lo, hi, width, u) is None:
+                        first, seg = None, settled[rec][a:b]
+                if target is wide and split in wider and entry.get("clip") is None:
+                    top = _flat_top(seg, u, lo, hi)
+                    entry["clip"] = None if top is None else a + top
                 if first is not None:
                     entry.update(ok=False, sample=a + first, recording=ds.recordings[rec].name)
                     break
             target[split] = entry
             target["ok"] = target["ok"] and entry["ok"]
     if wider:
+        # the first split whose run is cut flat at an output clip beyond the strict band (not a failure: the
+        # choice prefers an unclipped candidate that validates about as well, :func:`.select.choose`)
+        wide["clipped"] = next((sp for sp in ds.splits() if (wide.get(sp) or {}).get("clip") is not None), None)
         out["wide"] = wide
     return out
 

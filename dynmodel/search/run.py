@@ -40,7 +40,7 @@ from ..data.derived import position_like
 from ..data.repeats import repeat_note, repeats_training
 from ..errors import DynmodelError, interruption
 from ..extensions import merge
-from ..family import Progress, no_progress
+from ..family import Family, Progress, no_progress
 from ..spec import IN_MEMORY
 from .checks import affine, failed_split, linear_band
 from .params import AutoParams, searchable_families
@@ -383,6 +383,8 @@ class Search:
         self.stages: list[dict[str, Any]] = []
         self.interrupted: str | None = None
         self.limited = False  # stopped at the safety limit (not by the user)
+        self.refit: dict[str, Any] = {"refitted": False}  # the chosen model's refit on every fitting sample
+        self.fold_note: str | None = None  # why a fold's fit is the model, when it is
         self.started = time.monotonic()
         folds = self.folds
         if self.mode == "phase":  # a periodic excitation: each phase of the period held out in turn
@@ -878,15 +880,20 @@ class Search:
                 return  # no move beat the leader
 
     def _refit_work(self, leader: Entry) -> float:
-        """Planned work of the model's fit after the search: none on a holdout (the fit validated is the model),
-        else the leader's fit on the whole training split (cross-validated folds, recordings left out), which
-        the moves leave room for."""
+        """Planned work of the model's fits after the search, which the moves leave room for: on a holdout none
+        for the model itself (the fit validated is the model), else the leader's fit on the whole training split
+        (cross-validated folds, recordings left out); and its refit on every fitting sample
+        (:meth:`_refit_on_all`) when its family can freeze its configuration."""
+        cls = registry.families().get(leader.cand.family)
+        frozen = cls is not None and cls.frozen_config is not Family.frozen_config and not leader.stands_screened
+        every = self.ds.n_scored("train") + self.ds.n_scored("validation")
+        work = estimated_work(leader.cand, self.ctx, every) + TASK_OVERHEAD if frozen else 0.0
         if self.mode in ("holdout", "tail"):
-            return 0.0
+            return work
         if leader.stands_screened:  # its screening variant on the screening samples (see _final_model)
             full = self._screened(Layout("full"))
             return estimated_work(leader.cand, self.ctx, self._n_layout(full), True) + TASK_OVERHEAD
-        return estimated_work(leader.cand, self.ctx) + TASK_OVERHEAD
+        return work + estimated_work(leader.cand, self.ctx) + TASK_OVERHEAD
 
     def _candidate_from(self, leader: Entry, raw: dict[str, Any], prop: dict[str, Any]) -> Candidate | None:
         """The candidate a diagnosis proposal makes of the leader's spec (patch merged, then validated)."""
@@ -1021,6 +1028,100 @@ class Search:
         assert r.model is not None  # checked above
         return r.model.to_model()
 
+    def _refit_on_all(self, e: Entry, model, level: str):
+        """The chosen configuration fitted again on every training and validation sample together, its choices
+        made on validation frozen (:meth:`dynmodel.family.Family.frozen_config`: a NARX model's terms and ridge
+        factor), so that the model kept learns from every sample the search may read: the validation split, the
+        block held out, the recording left out. ``model`` (the fit the search validated) is kept instead when
+        its family cannot freeze it, it stands as screened, the search was stopped, or the refit fails or
+        leaves the output band, or its free run fits every sample worse than the model validated does
+        (:meth:`_fit_error`: its estimation stalled); ``self.refit`` says which. The validation scores of a refitted model are no
+        longer a hold-out: the note says so, with the search's validation NMSE."""
+        every = view(self.ds, Layout("all"))
+        self.refit = {"refitted": False}
+        try:
+            config = model.family.frozen_config()
+        except (ValueError, RuntimeError):
+            config = None
+        why = None
+        if config is None:
+            why = f"the {e.cand.family} family cannot fit its configuration again without a validation split"
+        elif e.stands_screened or level != "final":
+            why = "it was not fitted in full"
+        elif self.interrupted or self._past_limit():
+            why = "the search was stopped"
+        if why is not None:
+            self.refit["why"] = why
+            return model
+        assert config is not None
+        seed = e.summaries[level].median_seed
+        raw = self.raw_for(e.cand, seed if seed is not None else int(self.spec.seed), False)
+        raw["model"] = {"family": e.cand.family, "params": config["params"]}
+        if config.get("cost"):
+            raw["cost"] = config["cost"]
+        task = self._task(f"{e.cand.key}|all|{seed}", raw, "fit", Layout("all"))
+        self.progress("search", None, f"fitting {e.label} again on all {every.n_scored('train')} training samples")
+        results = list(run_specs([task], self.executor, keep_models=True, point=run_task, cancel=self._past_limit))
+        r: TaskResult | None = results[0] if results else None  # type: ignore[assignment]
+        if r is not None and self.linear_band:
+            r.checks = linear_band(r.checks)
+        before = self._fit_error(model, every)
+        worse = (
+            r is not None
+            and r.score is not None
+            and before is not None
+            and not (r.score <= before)  # a NaN score is worse too
+        )
+        if r is None or r.model is None or r.status != "ok" or not r.checks.get("ok", False) or worse:
+            failed = "it did not finish" if r is None else (failed_split(r.checks) or r.message or r.status)
+            if worse:
+                assert r is not None and r.score is not None and before is not None
+                failed = (
+                    f"its free run fits those samples worse than the model validated: NMSE {r.score:.4g} % "
+                    f"against {before:.4g} %"
+                )
+            self.refit["why"] = f"the refit failed ({failed})"
+            self.notes.append(
+                f"{e.label} fitted again on the training and validation samples together failed ({failed}); "
+                "the model kept is the one validated"
+            )
+            return model
+        score = e.summaries[level].score
+        self.refit = {
+            "refitted": True,
+            "samples": int(every.n_scored("train")),
+            "params": config["params"],
+            "cost": config.get("cost"),
+            "validation_nmse": score if math.isfinite(score) else None,
+            "seconds": round(r.seconds, 3),
+        }
+        if self.ds.n_scored("validation"):
+            where = "the training and validation samples together"
+            scores = "its validation scores below are no longer a hold-out"
+        else:
+            where = "the whole training split, the samples held out to validate it included"
+            scores = "the training scores below include them"
+        self.notes.append(
+            f"the chosen {e.label} was fitted again on {where} ({every.n_scored('train')} samples), its choices "
+            f"made on validation frozen: {scores} (the search's validation NMSE: {score:.4g} %)"
+        )
+        return r.model.to_model()
+
+    @staticmethod
+    def _fit_error(model, ds: Dataset) -> float | None:
+        """The free-run NMSE (%, mean over outputs) of ``model`` over the training split of ``ds``, None when it
+        cannot be run there. The refit minimised its cost on these samples: where it fits them worse than the
+        model validated, its estimation stalled (a long record whose free-run sensitivities build up), and the
+        model validated is kept."""
+        from ..model import evaluate
+
+        try:
+            metrics, _ = evaluate(model, ds, ["nmse"], one_step=False)
+        except (ValueError, FloatingPointError):
+            return None
+        value = (metrics.get("train") or {}).get("nmse")
+        return None if value is None else float(value)
+
     def _keep(self, e: Entry, level: str, past_limit: bool, last: bool = False):
         """The model of a fit of ``e`` already made at ``level``: its median seed's, on the layout that trained on
         the most samples (a recording or block left out; ties: the first; ``last``: of blocks in time, the one
@@ -1048,7 +1149,7 @@ class Search:
                 if layout.kind == "recording"
                 else f"without the last 1/{layout.folds} of every training recording, held out to validate it"
             )
-            self.notes.append(
+            self.fold_note = (  # said unless the refit on every sample replaces that fit (:meth:`_refit_on_all`)
                 f"there is no validation split, so the model kept is {e.label} as fitted {how}: fitted on the whole "
                 "training split it would have nothing to choose its size or training length on (add a validation "
                 f"split, e.g. split: {_with_validation(self.spec)}, to fit it on more data)"
@@ -1103,6 +1204,7 @@ class Search:
                 break
             if model is not None:
                 self.entries[key].verdict = "chosen"
+                model = self._refit_on_all(self.entries[key], model, level)
                 break
             failed = self.entries[key].summaries[level]
             failed.ok = False
@@ -1114,6 +1216,8 @@ class Search:
         ranked = self.ranking()
         entries = [self.entries[k] for k in ranked] + [e for k, e in self.entries.items() if k not in ranked]
         notes = list(self.notes) + (choice.notes if choice else [])
+        if self.fold_note and not self.refit.get("refitted"):
+            notes.append(self.fold_note)
         if self.limited:
             notes.insert(0, f"the search {self.interrupted}; a larger budget, or fewer samples, searches further")
         winner = self.entries.get(key) if key else None
@@ -1168,6 +1272,7 @@ class Search:
             "notes": notes,
             "interrupted": self.interrupted,
             "safety_limit": self.limited,
+            "refit": self.refit if winner else {"refitted": False},
             "seconds": round(time.monotonic() - self.started, 3),
             "candidates": [e.to_json() for e in entries],
         }
@@ -1189,8 +1294,9 @@ def tail_note(folds: int, planned: bool = False) -> str:
     are, is_ = ("are", "is") if planned else ("were", "was")
     return (
         f"there is no validation split: the candidates {are} ranked on their free run over the last 1/{folds} "
-        f"of every training recording, held out from their fits, and the chosen one {is_} kept as fitted on the "
-        "rest (add a validation split, e.g. split: {train: 0.8, validation: 0.2}, to choose where it lies)"
+        f"of every training recording, held out from their fits, and the chosen one {is_} fitted again on all "
+        "of it with its choices frozen, where its family can (else kept as fitted on the rest); add a validation "
+        "split, e.g. split: {train: 0.8, validation: 0.2}, to choose where it lies"
     )
 
 
@@ -1244,9 +1350,15 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
     if keeps_a_fold(mode, ds):
         kept = "the last block held out" if mode == "folds" else "the recording left out whose fit trained on the most"
         lines.append(
-            f"final model: there is no validation split, so the chosen candidate is kept as fitted with {kept} "
-            "(a fit on the whole training split would have nothing to choose its size on); add a validation "
-            f"split, e.g. split: {_with_validation(spec)}, to fit it on more data"
+            "final model: there is no validation split, so the chosen candidate is fitted again on the whole "
+            "training split with its choices made on validation frozen, where its family can; otherwise it is "
+            f"kept as fitted with {kept} (a fit on the whole training split would have nothing to choose its size "
+            f"on; add a validation split, e.g. split: {_with_validation(spec)}, to fit it on more data)"
+        )
+    else:
+        lines.append(
+            "final model: the chosen candidate is fitted again on the training and validation samples together, "
+            "with its choices made on validation frozen (a structure, a factor), where its family can"
         )
     if ctx.max_warmup is not None:
         lines.append(f"the protocol lets a run start from at most {ctx.max_warmup} measured outputs")

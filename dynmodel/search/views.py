@@ -19,6 +19,8 @@ so a fit inside the search cannot read a test output: the search's checks on tes
   amplitudes). Fold ``i`` validates on all of recording ``i``'s training and validation samples, trained
   on the other recordings': how well a model carries over to a recording it has not seen, which is what
   a test recording asks and a validation split taken from the same recordings cannot tell;
+* ``all``: every training and validation sample as training, no validation: the chosen configuration's refit
+  (its choices made on validation frozen);
 * ``fold k of k`` alone: long data without a validation split (the spec's split is training only) are
   ranked on the last block of every span, held out, never on the training error.
 
@@ -53,7 +55,7 @@ MIN_RECORDINGS = 3
 
 @dataclass(frozen=True)
 class Layout:
-    kind: str = "full"  # "full" | "screen" | "fold" | "recording"
+    kind: str = "full"  # "full" | "screen" | "fold" | "recording" | "all"
     samples: int = 0  # screen, and a screened fold or recording left out: training samples kept; 0 all
     fold: int = 0
     folds: int = 0
@@ -65,6 +67,7 @@ class Layout:
             "screen": "screen",
             "fold": f"{'phase' if self.period else 'fold'} {self.fold + 1}/{self.folds}",
             "recording": f"recording {self.fold + 1}/{self.folds} left out",
+            "all": "training and validation together",
         }.get(self.kind, "full")
         return f"{name} ({self.samples} training samples)" if self.samples else name
 
@@ -288,6 +291,8 @@ def view(ds: Dataset, layout: Layout, fresh: tuple[int, bool] | None = None) -> 
         ds = fold(ds, layout.fold, layout.folds, apart=fresh is not None)
     elif layout.kind == "recording":
         ds = recording_fold(ds, layout.fold)
+    elif layout.kind == "all":
+        ds = _compact(ds, {"train": spans(ds)})
     elif fresh is not None:
         ds = _own_validation_runs(ds)
     return screen(ds, layout.samples or None)

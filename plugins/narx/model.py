@@ -53,6 +53,10 @@ _CLEARLY_BETTER = 3.0
 _RESERVES = 4
 
 
+#: parameters that choose the structure, left out of :meth:`Narx.frozen_config` (the terms are given instead)
+_CHOOSING = ("lags", "degree", "terms", "selection", "max_terms", "threshold", "stop_on", "patience", "growth_window")
+
+
 class Narx(Family):
     name = "narx"
     description = (
@@ -836,6 +840,23 @@ class Narx(Family):
         from .search import search_space
 
         return search_space(ctx, around)
+
+    def frozen_config(self) -> dict[str, Any] | None:
+        """The given parameters with the fitted structure frozen: its terms (``terms``, so no FOS and no lag or
+        degree search) and its ridge factor (one factor for every output; ``ridge: auto`` chose it on
+        validation); cost ``mse1`` when the validation kept the least-squares weights over the free-run ones.
+        None when the outputs' ridge factors differ (one number cannot give them)."""
+        self.check_fitted()
+        frozen = {k: v for k, v in self._given.items() if k not in _CHOOSING}
+        frozen["terms"] = {name: list(terms) for name, terms in zip(self.output_names_, self.terms_)}
+        ridge_ = getattr(self, "ridge_", None)
+        if ridge_ is not None:
+            alpha = np.unique(np.asarray(ridge_["alpha"], dtype=float))
+            if alpha.size != 1:
+                return None
+            frozen["ridge"] = float(alpha[0])
+        least_squares = any(step.get("kept") == "least squares" for step in getattr(self, "refinement_", []))
+        return {"params": frozen, "cost": "mse1" if least_squares else None}
 
     @classmethod
     def full_work(cls, ctx, found):
