@@ -930,6 +930,21 @@ def test_narx_freezes_its_terms_and_ridge_factor_for_a_refit():
         np.testing.assert_allclose(again.weights_, fitted.weights_, rtol=1e-6, atol=1e-9)
 
 
+def test_esn_freezes_the_number_of_readout_terms_for_a_refit():
+    """Esn.frozen_config: the same training data without a validation split give the same FOS readout (as many
+    terms as the validation stopped at, the network fixed by the seed); a ridge factor chosen on validation
+    cannot be frozen."""
+    esn = registry.families()["esn"]
+    u, y = narx(3000, 3)
+    fitted = esn().fit(u, y, validation=0.2, seed=0)
+    config = fitted.frozen_config()
+    assert config is not None and config["params"]["readout"]["max_terms"] == len(fitted.selected_[0]) + 1
+    again = esn(**config["params"]).fit(u[:2400], y[:2400], validation=None, seed=0)
+    np.testing.assert_array_equal(again.W_, fitted.W_)
+    ridge = esn(readout={"solver": "ridge"}).fit(u, y, validation=0.2, seed=0)
+    assert ridge.frozen_config() is None
+
+
 def _three_recordings(tmp_path: Path, budget: float) -> tuple[dict[str, Any], Any]:
     """Three training recordings of 900 samples (other realizations of one system), 70 % training each."""
     for i, seed in enumerate((11, 12, 13)):

@@ -400,6 +400,20 @@ class EchoStateNetwork(Family):
         self.refinement_ = list(attrs.get("refinement") or [])
         return self
 
+    def frozen_config(self) -> dict[str, Any] | None:
+        """The given parameters with the readout's choice frozen: a FOS readout keeps as many terms as it chose on
+        validation (``max_terms``: its states and drive terms and the constant; the network itself is fixed by
+        the seed). An external network's refinement then keeps its best iterate on the training run. None for a
+        ridge factor chosen on validation (it is not kept)."""
+        self.check_fitted()
+        r = self.params.readout
+        if r.solver == "ridge" and r.ridge == "auto":
+            return None
+        readout = dict(self._given.get("readout") or {})
+        if r.solver == "fos":
+            readout["max_terms"] = int(max(len(s) for s in self.selected_)) + 1
+        return {"params": {**self._given, "readout": readout}, "cost": None}
+
     def summary(self) -> dict[str, Any]:
         net = self.network_
         info: dict[str, Any] = {
