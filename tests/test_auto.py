@@ -928,6 +928,12 @@ def test_narx_freezes_its_terms_and_ridge_factor_for_a_refit():
         again = Narx(**config["params"]).fit(u[:2400], y[:2400], validation=None, cost=config["cost"] or "mse_inf")
         assert again.terms_ == fitted.terms_
         np.testing.assert_allclose(again.weights_, fitted.weights_, rtol=1e-6, atol=1e-9)
+    kept = set()
+    for samples in (500, 1000):  # whole-split weights validate better with 500, the window's with 1000
+        grown = Narx(selection="free_run", growth_window=samples).fit(u, y, validation=0.2, cost="mse_inf")
+        kept.add(grown.selection_["window"]["weights"])
+        assert (grown.frozen_config() is None) == (grown.selection_["window"]["weights"] == "window")
+    assert kept == {"window", "whole"}
 
 
 def test_esn_freezes_the_number_of_readout_terms_for_a_refit():

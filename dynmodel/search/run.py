@@ -1049,7 +1049,7 @@ class Search:
             config = None
         why = None
         if config is None:
-            why = f"the {e.cand.family} family cannot fit its configuration again without a validation split"
+            why = f"the {e.cand.family} family cannot freeze the choices this fit made on validation"
         elif e.stands_screened or level != "final":
             why = "it was not fitted in full"
         elif self.interrupted or self._past_limit():

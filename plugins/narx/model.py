@@ -845,8 +845,12 @@ class Narx(Family):
         """The given parameters with the fitted structure frozen: its terms (``terms``, so no FOS and no lag or
         degree search) and its ridge factor (one factor for every output; ``ridge: auto`` chose it on
         validation); cost ``mse1`` when the validation kept the least-squares weights over the free-run ones.
-        None when the outputs' ridge factors differ (one number cannot give them)."""
+        None when the outputs' ridge factors differ (one number cannot give them), or when the validation kept the
+        weights grown on the last ``growth_window`` samples over those re-estimated on the whole training split
+        (more samples would undo that choice)."""
         self.check_fitted()
+        if (self.selection_.get("window") or {}).get("weights") == "window":
+            return None
         frozen = {k: v for k, v in self._given.items() if k not in _CHOOSING}
         frozen["terms"] = {name: list(terms) for name, terms in zip(self.output_names_, self.terms_)}
         ridge_ = getattr(self, "ridge_", None)
