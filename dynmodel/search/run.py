@@ -1037,12 +1037,18 @@ class Search:
         made on validation frozen (:meth:`dynmodel.family.Family.frozen_config`: a NARX model's terms and ridge
         factor), so that the model kept learns from every sample the search may read: the validation split, the
         block held out, the recording left out. ``model`` (the fit the search validated) is kept instead when
-        its family cannot freeze it, it stands as screened, the search was stopped, or the refit fails or
-        leaves the output band, or its free run fits every sample worse than the model validated does, by more
-        than :data:`REFIT_WORSE` (:meth:`_fit_error`: its estimation stalled); ``self.refit`` says which. The validation scores of a refitted model are no
-        longer a hold-out: the note says so, with the search's validation NMSE."""
+        its family cannot freeze it, it stands as screened, the search was stopped, or the refit fails, leaves
+        the output band, or fits those samples worse than the model validated by more than :data:`REFIT_WORSE`
+        (:meth:`_fit_error`: its estimation stalled); ``self.refit`` says which. The validation scores of a
+        refitted model are no longer a hold-out: the note says so, with the search's validation NMSE."""
         every = view(self.ds, Layout("all"))
         self.refit = {"refitted": False}
+        if self.ds.n_scored("validation"):
+            where = "the training and validation samples together"
+            scores = "its validation scores below are no longer a hold-out"
+        else:
+            where = "the whole training split, the samples held out to validate it included"
+            scores = "the training scores below include them"
         try:
             config = model.family.frozen_config()
         except (ValueError, RuntimeError):
@@ -1077,14 +1083,15 @@ class Search:
         r: TaskResult | None = results[0] if results else None  # type: ignore[assignment]
         if r is not None and self.linear_band:
             r.checks = linear_band(r.checks)
-        before = self._fit_error(model, every)
+        usable = r is not None and r.model is not None and r.status == "ok" and r.checks.get("ok", False)
+        before = self._fit_error(model, every) if usable else None
         worse = (
             r is not None
             and r.score is not None
             and before is not None
             and not (r.score <= REFIT_WORSE * before)  # a NaN score is worse too
         )
-        if r is None or r.model is None or r.status != "ok" or not r.checks.get("ok", False) or worse:
+        if r is None or not usable or worse:
             failed = "it did not finish" if r is None else (failed_split(r.checks) or r.message or r.status)
             if worse:
                 assert r is not None and r.score is not None and before is not None
@@ -1094,8 +1101,7 @@ class Search:
                 )
             self.refit["why"] = f"the refit failed ({failed})"
             self.notes.append(
-                f"{e.label} fitted again on the training and validation samples together failed ({failed}); "
-                "the model kept is the one validated"
+                f"{e.label} fitted again on {where} failed ({failed}); the model kept is the one validated"
             )
             return model
         score = e.summaries[level].score
@@ -1107,16 +1113,11 @@ class Search:
             "validation_nmse": score if math.isfinite(score) else None,
             "seconds": round(r.seconds, 3),
         }
-        if self.ds.n_scored("validation"):
-            where = "the training and validation samples together"
-            scores = "its validation scores below are no longer a hold-out"
-        else:
-            where = "the whole training split, the samples held out to validate it included"
-            scores = "the training scores below include them"
         self.notes.append(
             f"the chosen {e.label} was fitted again on {where} ({every.n_scored('train')} samples), its choices "
             f"made on validation frozen: {scores} (the search's validation NMSE: {score:.4g} %)"
         )
+        assert r is not None and r.model is not None  # usable
         return r.model.to_model()
 
     @staticmethod
