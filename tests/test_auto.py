@@ -1290,7 +1290,11 @@ def test_the_choice_prefers_a_model_without_an_output_clip_its_input_drives_it_i
     small = _s(1.05, 3)  # a smaller clipped one inside a cautious tie: not taken for its size
     small.clipped = "test"
     c = choose({"a": whole, "b": small}, labels, short_validation="only 40 validation samples")
-    assert c.key == "a" and c.verdicts["b"].startswith("set aside")
+    assert c.key == "a" and c.verdicts["b"].startswith("set aside") and "cut flat" in c.notes[0]
+    far_clipped = _s(1.2, 3)  # set aside too, but it could not have been chosen: no note about it
+    far_clipped.clipped = "train"
+    c = choose({"a": whole, "b": far_clipped}, labels)
+    assert c.key == "a" and c.verdicts["b"].startswith("set aside") and not c.notes
 
 
 def _blocks(score: float, values: list[float]) -> Summary:

@@ -347,12 +347,13 @@ def choose(
                 f"set aside: its output is cut flat at a clip on the {summaries[k].clipped} input, where the linear "
                 "system's goes on, while an unclipped model validates about as well"
             )
-        out.notes.append(
-            f"{labels[clipped[0]]} (validation NMSE {summaries[clipped[0]].score:.4g} %) has its output cut flat at a "
-            f"clip on the {summaries[clipped[0]].clipped} input, where the linear reference's goes on (the system is "
-            f"about linear); models without such a clip that validate within {100 * (ABOUT_AS_WELL - 1):.0f} % of "
-            "the best are preferred"
-        )
+        if summaries[clipped[0]].score <= best * (1 + CAUTIOUS_TIE):  # it could have been chosen: say why not
+            out.notes.append(
+                f"{labels[clipped[0]]} (validation NMSE {summaries[clipped[0]].score:.4g} %) has its output cut flat "
+                f"at a clip on the {summaries[clipped[0]].clipped} input, where the linear reference's goes on (the "
+                f"system is about linear); models without such a clip that validate within "
+                f"{100 * (ABOUT_AS_WELL - 1):.0f} % of the best are preferred"
+            )
         eligible = [k for k in eligible if not summaries[k].clipped]
         best = summaries[eligible[0]].score
     # the validation can itself say whether it resolves a gain when its only doubts are its size (a short
