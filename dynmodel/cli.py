@@ -185,10 +185,24 @@ def _sigterm_as_interrupt():
         _state["terminated"] = True
         raise Terminated()
 
+    hook = sys.unraisablehook
+
+    def swallowed(args) -> None:
+        # the handler's exception landed in a finalizer or a weakref callback, where Python only prints it (under
+        # load a sweep then ran to its end and exited 0): send the signal again, to land in the code around it
+        if isinstance(args.exc_value, Terminated):
+            import os
+
+            threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGTERM)).start()
+            return
+        hook(args)
+
     signal.signal(signal.SIGTERM, terminate)
+    sys.unraisablehook = swallowed
     try:
         yield
     finally:
+        sys.unraisablehook = hook
         signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
 
 

@@ -198,6 +198,27 @@ def test_an_interrupted_annealing_keeps_its_best_network_and_says_so(tmp_path, s
 # ------------------------------------------------------------------------------ issue: SIGTERM and worker processes
 
 
+def test_a_sigterm_swallowed_by_a_finalizer_is_delivered_again():
+    """The SIGTERM handler raises in whatever code runs when the signal arrives; in a finalizer or a weakref
+    callback Python only prints that exception ("Exception ignored in ..."), and a sweep under load ran to its
+    end with exit 0. The signal is then sent again, and lands in the code around it."""
+    import gc
+
+    from dynmodel import cli
+    from dynmodel.errors import Terminated
+
+    class Finalized:
+        def __del__(self):
+            raise Terminated()  # as the handler does when the signal arrives during a finalizer
+
+    with cli._sigterm_as_interrupt():
+        with pytest.raises(Terminated):
+            Finalized()
+            gc.collect()
+            time.sleep(5)  # the signal sent again lands here
+    assert signal.getsignal(signal.SIGTERM) is not None
+
+
 def test_sigterm_stops_a_sweeps_worker_processes_and_keeps_its_finished_points(tmp_path):
     write_yaml(tmp_path / "spec.yaml", annealing(5000))
     write_yaml(tmp_path / "grid.yaml", {"seed": [0, 1, 2, 3, 4, 5]})
