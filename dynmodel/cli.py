@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
 import sys
 import threading
 from collections.abc import Callable
@@ -191,8 +192,6 @@ def _sigterm_as_interrupt():
         # the handler's exception landed in a finalizer or a weakref callback, where Python only prints it (under
         # load a sweep then ran to its end and exited 0): send the signal again, to land in the code around it
         if isinstance(args.exc_value, Terminated):
-            import os
-
             threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGTERM)).start()
             return
         hook(args)

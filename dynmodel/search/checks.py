@@ -130,8 +130,6 @@ def _held(
         still = (np.abs(np.diff(seg, axis=0)) <= 1e-12 * width).all(axis=1)
         beyond = ((seg[1:] < lo) | (seg[1:] > hi)).any(axis=1)
     held = np.asarray(still & beyond)
-    if _longest_run(held) <= BRIEF:
-        return None
     edges = np.flatnonzero(np.diff(np.concatenate([[0], held.astype(np.int8), [0]])))
     for a, b in zip(edges[::2], edges[1::2]):
         if b - a > BRIEF and (u is None or not (u[a + 1 : b + 1] == u[a + 1]).all()):

@@ -1041,8 +1041,6 @@ class Search:
         the output band, or fits those samples worse than the model validated by more than :data:`REFIT_WORSE`
         (:meth:`_fit_error`: its estimation stalled); ``self.refit`` says which. The validation scores of a
         refitted model are no longer a hold-out: the note says so, with the search's validation NMSE."""
-        every = view(self.ds, Layout("all"))
-        self.refit = {"refitted": False}
         if self.ds.n_scored("validation"):
             where = "the training and validation samples together"
             scores = "its validation scores below are no longer a hold-out"
@@ -1064,6 +1062,7 @@ class Search:
             self.refit["why"] = why
             return model
         assert config is not None
+        every = view(self.ds, Layout("all"))
         seed = e.summaries[level].median_seed
         raw = self.raw_for(e.cand, seed if seed is not None else int(self.spec.seed), False)
         raw["model"] = {"family": e.cand.family, "params": config["params"]}

@@ -288,6 +288,14 @@ def _size(s: Summary) -> float:
     return s.complexity if s.complexity is not None else math.inf
 
 
+def _set_aside(eligible: list[str], summaries: dict[str, Summary], flawed, best: float) -> list[str]:
+    """The candidates of ``eligible`` (best first) with the flaw ``flawed(summary)``, when one without it
+    validates within :data:`ABOUT_AS_WELL` of the score ``best``; [] otherwise (the flawed stay)."""
+    if not any(not flawed(summaries[k]) and summaries[k].score <= ABOUT_AS_WELL * best for k in eligible):
+        return []
+    return [k for k in eligible if flawed(summaries[k])]
+
+
 def ignores_input(s: Summary) -> bool:
     return s.dependence is not None and s.dependence < IGNORES_INPUT
 
@@ -327,34 +335,34 @@ def choose(
             f"outputs); kept the best on validation anyway: {labels[eligible[0]]}"
         )
     best = summaries[eligible[0]].score
-    if uses_inputs and ignores_input(summaries[eligible[0]]):
-        users = [k for k in eligible if not ignores_input(summaries[k]) and summaries[k].score <= ABOUT_AS_WELL * best]
-        if users:
-            for k in eligible:
-                if ignores_input(summaries[k]):
-                    out.verdicts[k] = "set aside: ignores its input while a model that uses it validates about as well"
-            out.notes.append(
-                f"{labels[eligible[0]]} validated best but ignores its input; a model that uses the input "
-                f"validates within {100 * (ABOUT_AS_WELL - 1):.0f} % of it and is preferred"
-            )
-            eligible = [k for k in eligible if not ignores_input(summaries[k])]
-            best = summaries[eligible[0]].score
-    clipped = [k for k in eligible if summaries[k].clipped]
-    whole = [k for k in eligible if not summaries[k].clipped and summaries[k].score <= ABOUT_AS_WELL * best]
-    if clipped and whole:
-        for k in clipped:
-            out.verdicts[k] = (
-                f"set aside: its output is cut flat at a clip on the {summaries[k].clipped} input, where the linear "
-                "system's goes on, while an unclipped model validates about as well"
-            )
-        if summaries[clipped[0]].score <= best * (1 + CAUTIOUS_TIE):  # it could have been chosen: say why not
-            out.notes.append(
-                f"{labels[clipped[0]]} (validation NMSE {summaries[clipped[0]].score:.4g} %) has its output cut flat "
-                f"at a clip on the {summaries[clipped[0]].clipped} input, where the linear reference's goes on (the "
-                f"system is about linear); models without such a clip that validate within "
-                f"{100 * (ABOUT_AS_WELL - 1):.0f} % of the best are preferred"
-            )
-        eligible = [k for k in eligible if not summaries[k].clipped]
+    # a model that ignores its input, then one kept to an output clip where a linear system goes on, is set aside
+    # when one without that flaw validates about as well
+    ignoring = uses_inputs and ignores_input(summaries[eligible[0]])
+    aside = _set_aside(eligible, summaries, ignores_input, best) if ignoring else []
+    for k in aside:
+        out.verdicts[k] = "set aside: ignores its input while a model that uses it validates about as well"
+    if aside:
+        out.notes.append(
+            f"{labels[eligible[0]]} validated best but ignores its input; a model that uses the input "
+            f"validates within {100 * (ABOUT_AS_WELL - 1):.0f} % of it and is preferred"
+        )
+        eligible = [k for k in eligible if k not in aside]
+        best = summaries[eligible[0]].score
+    clipped = _set_aside(eligible, summaries, lambda s: bool(s.clipped), best)
+    for k in clipped:
+        out.verdicts[k] = (
+            f"set aside: its output is cut flat at a clip on the {summaries[k].clipped} input, where the linear "
+            "system's goes on, while an unclipped model validates about as well"
+        )
+    if clipped and summaries[clipped[0]].score <= best * (1 + CAUTIOUS_TIE):  # it could have been chosen: say why not
+        out.notes.append(
+            f"{labels[clipped[0]]} (validation NMSE {summaries[clipped[0]].score:.4g} %) has its output cut flat "
+            f"at a clip on the {summaries[clipped[0]].clipped} input, where the linear reference's goes on (the "
+            f"system is about linear); models without such a clip that validate within "
+            f"{100 * (ABOUT_AS_WELL - 1):.0f} % of the best are preferred"
+        )
+    if clipped:
+        eligible = [k for k in eligible if k not in clipped]
         best = summaries[eligible[0]].score
     # the validation can itself say whether it resolves a gain when its only doubts are its size (a short
     # cross-validation: compared fold by fold) or a gain over the linear reference too small to trust at
