@@ -122,34 +122,42 @@ def checked_family(spec: Spec, ds: Dataset) -> Family:
     return family
 
 
-def fit_dataset(spec: Spec, ds: Dataset, progress: Progress = no_progress) -> tuple[FittedModel, list[Run]]:
+def fit_dataset(
+    spec: Spec, ds: Dataset, progress: Progress = no_progress, pre: Preprocessor | None = None
+) -> tuple[FittedModel, list[Run]]:
     """Fit the spec's model on an already loaded dataset and evaluate it on every split (``family: auto``:
-    search the families first, see :mod:`dynmodel.search`)."""
+    search the families first, see :mod:`dynmodel.search`). ``pre``: this preprocessing instead of the one the
+    spec fits on ``ds``'s training split (a refit warm-started from a model's values keeps that model's)."""
     if spec.model.family == "auto":
         from .search import fit_auto
 
         return fit_auto(spec, ds, progress)
     family = checked_family(spec, ds)
-    return fit_family(family, spec, ds, progress)
+    return fit_family(family, spec, ds, progress, pre)
 
 
 def fit_family(
-    family: Family, spec: Spec | ArraySpec, ds: Dataset, progress: Progress = no_progress
+    family: Family,
+    spec: Spec | ArraySpec,
+    ds: Dataset,
+    progress: Progress = no_progress,
+    pre: Preprocessor | None = None,
 ) -> tuple[FittedModel, list[Run]]:
-    """Fit a constructed ``family`` on ``ds`` with the spec's preprocessing, cost and seed, and evaluate
-    it on every split (the engine path of ``dynmodel fit`` and of ``Family.fit`` on arrays), with one BLAS
-    thread so that the result does not depend on the machine (see :mod:`dynmodel.threads`)."""
+    """Fit a constructed ``family`` on ``ds`` with the spec's preprocessing (or ``pre``), cost and seed, and
+    evaluate it on every split (the engine path of ``dynmodel fit`` and of ``Family.fit`` on arrays), with one
+    BLAS thread so that the result does not depend on the machine (see :mod:`dynmodel.threads`)."""
     with fit_threads():
-        return _fit_family(family, spec, ds, progress)
+        return _fit_family(family, spec, ds, progress, pre)
 
 
 def _fit_family(
-    family: Family, spec: Spec | ArraySpec, ds: Dataset, progress: Progress
+    family: Family, spec: Spec | ArraySpec, ds: Dataset, progress: Progress, pre: Preprocessor | None = None
 ) -> tuple[FittedModel, list[Run]]:
     from .data.checks import check_warmup
 
     check_warmup(ds, family.warmup, spec.source)  # also for a family constructed in Python (no checked_family)
-    pre = preprocessor(spec, ds)
+    if pre is None:
+        pre = preprocessor(spec, ds)
     td = training_data(ds, pre)
     assert spec.cost is not None, "the cost is set for every family but auto (which searches)"
     with family_errors(spec):

@@ -909,6 +909,46 @@ def test_the_choice_is_fitted_again_on_every_fitting_sample_with_its_choices_fro
     assert model.metrics["test"]["nmse"] < 1.0
 
 
+def test_a_refit_that_fails_from_the_familys_start_is_tried_from_the_model_validated(tmp_path, monkeypatch):
+    """A family may offer a warm start (``frozen_config()["warm"]``): when the refit from its own start fails or
+    stalls, the search fits once more from the model validated's values, in its scaling, and keeps that fit when
+    it passes; when that fails too, the model validated is kept and the note names both failures. (The family's own start is
+    made to fail here with a ridge factor the spec refuses.)"""
+    from dynmodel_plugins.narx import Narx
+
+    real = Narx.frozen_config
+
+    def own_start_fails(self, warm_fails=False):
+        config = real(self)
+        assert config is not None
+        warm = config.get("warm") or config["params"]
+        broken = {**config["params"], "ridge": -1.0}
+        warm = {**warm, "ridge": -1.0} if warm_fails else warm
+        return {**config, "params": broken, "warm": warm, "warm_first": False}
+
+    _data(tmp_path, n=1500)
+    raw = _raw(families=["narx"], budget=4)
+    raw["data"]["split"] = {"train": 1.0}
+    monkeypatch.setattr(Narx, "frozen_config", own_start_fails)
+    model, ds = _fit(raw, tmp_path)
+    refit = model.search["refit"]
+    assert refit["refitted"] and refit["warm_start"] and refit["samples"] == ds.n_scored("train")
+    assert refit["params"].get("ridge") != -1.0 and model.spec["model"]["params"]["terms"] == refit["params"]["terms"]
+    assert any("started from its validated values" in n for n in model.search["notes"])
+    assert model.metrics["test"]["nmse"] < 1.0
+    # the values started from hold in the scaling of the model validated (a fold's), not in every sample's
+    from dynmodel.data import Preprocessor
+
+    every = Preprocessor.fit(view(ds, Layout("all")), [], "standard")
+    assert model.preprocessor.output_scale != pytest.approx(every.output_scale, rel=1e-6)
+
+    monkeypatch.setattr(Narx, "frozen_config", lambda self: own_start_fails(self, warm_fails=True))
+    model, _ = _fit(raw, tmp_path)
+    why = model.search["refit"]["why"]
+    assert why.count("ridge factor must be >= 0") == 2 and "; from the model validated's values: " in why
+    assert not model.search["refit"].get("refitted")
+
+
 def test_narx_freezes_its_terms_and_ridge_factor_for_a_refit():
     """Narx.frozen_config: the same training data without a validation split give the same terms and weights;
     a ridge factor chosen on validation becomes a number; weights the validation kept at least squares give
@@ -925,6 +965,11 @@ def test_narx_freezes_its_terms_and_ridge_factor_for_a_refit():
             assert config["params"]["ridge"] == pytest.approx(float(np.ravel(fitted.ridge_["alpha"])[0]))
         kept_ls = any(step.get("kept") == "least squares" for step in fitted.refinement_)
         assert config["cost"] == ("mse1" if kept_ls else None)
+        if kept_ls:
+            assert "warm" not in config  # least squares needs no start
+        else:  # the fallback for a stalled refit: start from the weights validated
+            assert config["warm"]["initial_weights"]["y"] == list(fitted.weights_) and not config["warm_first"]
+            assert "initial_weights" not in config["params"]
         again = Narx(**config["params"]).fit(u[:2400], y[:2400], validation=None, cost=config["cost"] or "mse_inf")
         assert again.terms_ == fitted.terms_
         np.testing.assert_allclose(again.weights_, fitted.weights_, rtol=1e-6, atol=1e-9)
@@ -932,8 +977,29 @@ def test_narx_freezes_its_terms_and_ridge_factor_for_a_refit():
     for samples in (500, 1000):  # whole-split weights validate better with 500, the window's with 1000
         grown = Narx(selection="free_run", growth_window=samples).fit(u, y, validation=0.2, cost="mse_inf")
         kept.add(grown.selection_["window"]["weights"])
-        assert (grown.frozen_config() is None) == (grown.selection_["window"]["weights"] == "window")
+        config = grown.frozen_config()
+        assert (config is None) == (grown.selection_["window"]["weights"] == "window")
+        if config is not None:  # grown weights: the refit starts from them first, not from least squares
+            assert config["warm_first"] and config["warm"]["initial_weights"]["y"] == list(grown.weights_)
+            assert "initial_weights" not in config["params"]
+            again = Narx(**config["warm"]).fit(u[:2400], y[:2400], validation=None, cost="mse_inf")
+            assert again.refinement_[0]["start"] == "initial weights"
+            assert again.terms_ == grown.terms_
+            np.testing.assert_allclose(again.weights_, grown.weights_, rtol=1e-4, atol=1e-7)
     assert kept == {"window", "whole"}
+    with pytest.warns(UserWarning, match="ignores"):  # as the model and the useless-model check say
+        constant = Narx(lags={"u": [0], "y": [1]}, terms=["1"]).fit(u, y, validation=0.2, cost="mse_inf")
+    assert constant.frozen_config() is None  # the constant alone: no lag to build a refit's structure on
+
+
+def test_the_annealed_rnn_has_no_frozen_configuration_to_refit():
+    """The annealing optimises the network on the validation split: a refit without one cannot run, so the
+    search reserves none and keeps the model validated (the echo state network's hook is not inherited)."""
+    annealed = registry.families()["annealed-rnn"]
+    assert annealed.frozen_config is Family.frozen_config
+    u, y = narx(600, 3)
+    fitted = annealed(size=8, steps=20).fit(u, y, validation=0.2, seed=0)
+    assert fitted.frozen_config() is None
 
 
 def test_esn_freezes_the_number_of_readout_terms_for_a_refit():

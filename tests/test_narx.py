@@ -115,6 +115,7 @@ def test_bad_lags_are_one_line_spec_errors(lags, message):
         ({"terms": ["w[t-1]"]}, "'w' is not a column"),
         ({"patience": None}, "needs a stopping rule"),
         ({"selection": "free_run"}, "use it with cost: mse_inf"),
+        ({"terms": ["y[t-1]", "u[t]"], "initial_weights": [0.5, 1.0]}, "use cost: mse_inf"),
     ],
 )
 def test_model_mistakes_become_one_line_errors(params, message):
@@ -125,6 +126,44 @@ def test_model_mistakes_become_one_line_errors(params, message):
         fit(raw)
     line = str(info.value)
     assert "\n" not in line and message in line and "model (narx)" in line
+
+
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        ({"initial_weights": [0.5]}, "give 'terms' too"),
+        ({"terms": ["y[t-1]", "u[t]"], "initial_weights": [0.5]}, "1 weights for 2 terms"),
+        ({"terms": ["y[t-1]"], "initial_weights": {"y": [0.5]}}, "as terms are written"),
+        ({"terms": {"y": ["y[t-1]"]}, "initial_weights": {"z": [0.5]}}, "name the outputs ['z']"),
+        ({"terms": ["y[t-1]"], "initial_weights": [float("nan")]}, "must be finite"),
+    ],
+)
+def test_bad_initial_weights_are_one_line_spec_errors(params, message):
+    with pytest.raises(SpecError) as info:
+        validate_spec(narx_raw(cost="mse_inf", **params), "spec.yaml")
+    line = str(info.value)
+    assert "\n" not in line and message in line
+
+
+def test_initial_weights_start_the_free_running_estimation_where_they_say():
+    """A warm start: from the weights of a model fitted on the free-running error, the estimation starts at that
+    model's cost and ends no higher; from a poor start (every weight 0.1) it reaches the same optimum here."""
+    terms = ["1", "y[t-1]", "y[t-2]", "u[t]", "u[t-1]", "u[t-1] * y[t-1]", "y[t-1]^2"]
+
+    def fitted(**given):
+        raw = narx_raw(cost="mse_inf", noise=0.05, terms=terms, **given)
+        raw["data"]["split"] = {"train": 1.0}  # no validation split to keep the start instead
+        return fit(raw).family
+
+    cold = fitted()
+    final = cold.refinement_[-1]["train_cost"]
+    warm = fitted(initial_weights=list(cold.weights_))
+    first = warm.refinement_[0]
+    assert first["start"] == "initial weights" and first["train_cost"] == pytest.approx(final, rel=1e-9)
+    assert warm.refinement_[-1]["train_cost"] <= final * (1 + 1e-9)
+    far = fitted(initial_weights=[0.1] * len(terms))
+    assert far.refinement_[0]["train_cost"] > 10 * final
+    np.testing.assert_allclose(far.weights_, cold.weights_, rtol=1e-3, atol=1e-6)
 
 
 def test_the_pool_holds_every_monomial_up_to_the_degree_once():

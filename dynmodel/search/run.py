@@ -1064,59 +1064,77 @@ class Search:
         assert config is not None
         every = view(self.ds, Layout("all"))
         seed = e.summaries[level].median_seed
-        raw = self.raw_for(e.cand, seed if seed is not None else int(self.spec.seed), False)
-        raw["model"] = {"family": e.cand.family, "params": config["params"]}
-        if config.get("cost"):
-            raw["cost"] = config["cost"]
-        task = self._task(f"{e.cand.key}|all|{seed}", raw, "fit", Layout("all"))
-        self.progress("search", None, f"fitting {e.label} again on all {every.n_scored('train')} training samples")
-        try:
+        before: list[float | None] = []  # the model validated's fit error there, computed once when needed
+
+        def attempt(warm: bool) -> tuple[TaskResult | None, str | None]:
+            """One refit (``warm``: from the model validated's values, with its preprocessing, for those values
+            mean what they meant only in its scaling): its result, and why it is not kept (None: kept)."""
+            raw = self.raw_for(e.cand, seed if seed is not None else int(self.spec.seed), False)
+            raw["model"] = {"family": e.cand.family, "params": config["warm" if warm else "params"]}
+            if config.get("cost"):
+                raw["cost"] = config["cost"]
+            task = self._task(f"{e.cand.key}|{'warm' if warm else 'all'}|{seed}", raw, "fit", Layout("all"))
+            if warm:
+                task = replace(task, preprocessor=model.preprocessor)
             results = list(run_specs([task], self.executor, keep_models=True, point=run_task, cancel=self._stopping))
+            r: TaskResult | None = results[0] if results else None  # type: ignore[assignment]
+            if r is None:
+                return None, "it did not finish"
+            if self.linear_band:
+                r.checks = linear_band(r.checks)
+            if r.model is None or r.status != "ok" or not r.checks.get("ok", False):
+                return r, failed_split(r.checks) or r.message or r.status
+            if not before:
+                before.append(self._fit_error(model, every))
+            if r.score is not None and before[0] is not None and not (r.score <= REFIT_WORSE * before[0]):
+                # a NaN score is worse too
+                return r, (
+                    f"its free run fits those samples clearly worse than the model validated: NMSE {r.score:.4g} % "
+                    f"against {before[0]:.4g} %"
+                )
+            return r, None
+
+        self.progress("search", None, f"fitting {e.label} again on all {every.n_scored('train')} training samples")
+        warm = bool(config.get("warm_first")) and bool(config.get("warm"))
+        try:
+            r, failed = attempt(warm)
+            if failed is not None and config.get("warm") and r is not None and not self._stopping():
+                # stalled or failed from one start: once more from the other
+                start = "its own start" if warm else "the model validated's values"
+                self.progress("search", None, f"fitting {e.label} again, from {start}")
+                first, warm = failed, not warm
+                r, failed = attempt(warm)
+                if failed is not None:
+                    failed = f"{first}; from {start}: {failed}"
         except KeyboardInterrupt as exc:  # the model validated is a whole model: keep it
             self.interrupted = f"{interruption(exc)} while the chosen model was fitted again on every sample"
-            results = []
-        if not results and self._stopping():
+            r, failed = None, "it did not finish"
+        if r is None and self._stopping():
             self._drop_abandoned()
             self.refit["why"] = "the search was stopped during the refit"
             return model
-        r: TaskResult | None = results[0] if results else None  # type: ignore[assignment]
-        if r is not None and self.linear_band:
-            r.checks = linear_band(r.checks)
-        usable = r is not None and r.model is not None and r.status == "ok" and r.checks.get("ok", False)
-        before = self._fit_error(model, every) if usable else None
-        worse = (
-            r is not None
-            and r.score is not None
-            and before is not None
-            and not (r.score <= REFIT_WORSE * before)  # a NaN score is worse too
-        )
-        if r is None or not usable or worse:
-            failed = "it did not finish" if r is None else (failed_split(r.checks) or r.message or r.status)
-            if worse:
-                assert r is not None and r.score is not None and before is not None
-                failed = (
-                    f"its free run fits those samples clearly worse than the model validated: NMSE {r.score:.4g} % "
-                    f"against {before:.4g} %"
-                )
+        if failed is not None:
             self.refit["why"] = f"the refit failed ({failed})"
             self.notes.append(
                 f"{e.label} fitted again on {where} failed ({failed}); the model kept is the one validated"
             )
             return model
+        assert r is not None and r.model is not None  # kept
         score = e.summaries[level].score
         self.refit = {
             "refitted": True,
             "samples": int(every.n_scored("train")),
-            "params": config["params"],
+            "params": config["warm" if warm else "params"],
             "cost": config.get("cost"),
+            "warm_start": warm,
             "validation_nmse": score if math.isfinite(score) else None,
             "seconds": round(r.seconds, 3),
         }
         self.notes.append(
             f"the chosen {e.label} was fitted again on {where} ({every.n_scored('train')} samples), its choices "
-            f"made on validation frozen: {scores} (the search's validation NMSE: {score:.4g} %)"
+            f"made on validation frozen{', started from its validated values' if warm else ''}: {scores} (the "
+            f"search's validation NMSE: {score:.4g} %)"
         )
-        assert r is not None and r.model is not None  # usable
         return r.model.to_model()
 
     @staticmethod

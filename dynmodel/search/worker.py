@@ -46,6 +46,8 @@ class Task(Variant):
     moves: int = 6
     #: per split, the range of the linear reference's free run (the linear-system band, :mod:`.checks`)
     envelope: dict[str, Any] | None = None
+    #: fit with this preprocessing (a warm start from a fitted model's values needs its scaling), not the view's
+    preprocessor: Any = None
 
 
 @dataclass
@@ -227,7 +229,7 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
     from .select import moment_score
 
     v = view(ds, task.layout)
-    model, runs = engine.fit_dataset(spec, v)
+    model, runs = engine.fit_dataset(spec, v, pre=task.preprocessor)
     protocol.check_warmup(model.family, ds, spec.source)  # the test sets' windows too (the view has none)
     result.metrics = model.metrics
     result.score = _score(model.metrics)

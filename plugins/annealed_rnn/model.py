@@ -186,6 +186,10 @@ class AnnealedRnn(EchoStateNetwork):
         self.search_ = attrs.get("search")
         return self
 
+    #: the base class's (None): the annealing optimises the network on the validation split, so it cannot be
+    #: fitted without one (the echo state network's hook, inherited otherwise, gives a refit that fails)
+    frozen_config = Family.frozen_config
+
     def summary(self) -> dict[str, Any]:
         info = super().summary()
         search = getattr(self, "search_", None)

@@ -105,6 +105,13 @@ class NarxFamilyParams(FamilyParams):
         description="a fixed structure instead of FOS: monomials such as 'y[t-1]^2 * u[t]' and '1' for the "
         "constant; one list for every output, or {output: [...]}. Lags not in 'lags' are added",
     )
+    initial_weights: Optional[Union[list[float], dict[str, list[float]]]] = Field(
+        None,
+        description="with 'terms' and cost mse_inf: start the free-running estimation from these weights (one per "
+        "term, in the order of 'terms'; {output: [...]} per output) instead of from least squares: a warm start, e.g. "
+        "from a model fitted on fewer samples. family: auto gives it when it fits a model grown on the free-running "
+        "error again on every sample (least squares is no start for those weights)",
+    )
     selection: Literal["one_step", "free_run"] = Field(
         "one_step",
         description="one_step: Fast Orthogonal Search on the one-step error (thesis A.2.2); free_run (needs "
@@ -251,6 +258,34 @@ class NarxFamilyParams(FamilyParams):
         if isinstance(v, float) and v < 0:
             raise ValueError("the ridge factor must be >= 0 (or auto)")
         return v
+
+    @model_validator(mode="after")
+    def _initial_weights(self) -> NarxFamilyParams:
+        """One finite starting weight per given term, written as the terms are (one list, or per output)."""
+        w = self.initial_weights
+        if w is None:
+            return self
+        if self.terms is None:
+            raise ValueError("initial_weights start the estimation of given terms: give 'terms' too")
+        t = self.terms
+        pairs: list[tuple[str | None, list[str], list[float]]]
+        if isinstance(w, dict) and isinstance(t, dict):
+            if set(w) != set(t):
+                raise ValueError(f"initial_weights name the outputs {sorted(w)}; terms name {sorted(t)}")
+            pairs = [(k, t[k], w[k]) for k in t]
+        elif isinstance(w, list) and isinstance(t, list):
+            pairs = [(None, t, w)]
+        else:
+            raise ValueError("write initial_weights as terms are written: one list, or {output: [...]} per output")
+        for name, terms, weights in pairs:
+            where = f" of '{name}'" if name is not None else ""
+            if len(weights) != len(terms):
+                raise ValueError(
+                    f"initial_weights{where}: {len(weights)} weights for {len(terms)} terms; give one per term"
+                )
+            if not all(np.isfinite(weights)):
+                raise ValueError(f"initial_weights{where}: every weight must be finite")
+        return self
 
     @property
     def max_degree(self) -> int:
