@@ -229,7 +229,8 @@ def _fmt(v: Any, digits: int = 4) -> str:
 
 def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
     table = Table(title=title, title_justify="left")
-    table.add_column("split", min_width=max((len(k) for k in metrics), default=5))
+    label = {k: f"{k} (fitted)" if m.get("fitted") else k for k, m in metrics.items()}  # family auto's refit
+    table.add_column("split", min_width=max((len(v) for v in label.values()), default=5))
     table.add_column("samples", justify="right")
     shown = [k for k in ("nmse", "max", "rmse", "fit") if k == "nmse" or any(k in m for m in metrics.values())]
     units = {m.get("rmse_units") for m in metrics.values()}
@@ -243,9 +244,9 @@ def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
         if m.get("unstable_from"):
             u = m["unstable_from"]
             cell = f"unstable from t = {u['time']:.6g} (sample {u['sample']})"
-            row = [split, str(m["samples"]), cell] + ["-"] * (len(shown) - 1)
+            row = [label[split], str(m["samples"]), cell] + ["-"] * (len(shown) - 1)
         else:
-            row = [split, str(m["samples"])] + [_fmt(m.get(k)) for k in shown]
+            row = [label[split], str(m["samples"])] + [_fmt(m.get(k)) for k in shown]
         if has_one:
             row.append(_fmt(m.get("nmse_1")))
         table.add_row(*row)

@@ -86,13 +86,15 @@ def trivial_nmse(ds: Dataset, split: str, warmup: int = 0) -> float | None:
     return None if each is None else float(np.mean(each))
 
 
-def _poor(value: float, ref: float | None, split: str, output: str | None = None) -> Note | None:
-    """A ``poor`` note when ``value`` (NMSE %) reaches :data:`POOR_NMSE` or the trivial reference ``ref``."""
+def _poor(value: float, ref: float | None, split: str, output: str | None = None, fitted: bool = False) -> Note | None:
+    """A ``poor`` note when ``value`` (NMSE %) reaches :data:`POOR_NMSE` or the trivial reference ``ref``
+    (``fitted``: the split's samples were fitted, family auto's refit)."""
     if not (value >= POOR_NMSE or (ref is not None and value >= ref)):
         return None
     worse = f", no better than the training mean's {ref:.3g} %" if ref is not None and value >= ref else ""
     on = f" on output '{output}'" if output is not None else ""
-    return Note("poor", split, f"its {split} NMSE is {value:.3g} %{on}{worse}", float(value), output)
+    shown = f"{split} (fitted)" if fitted else split
+    return Note("poor", split, f"its {shown} NMSE is {value:.3g} %{on}{worse}", float(value), output)
 
 
 def _scored_and_mean_input(
@@ -222,14 +224,15 @@ def assess(
             continue
         refs = trivial_nmse_each(ds, split, model.warmup) if ds is not None else None
         per = metrics[split].get("per_output") or {}
-        whole = _poor(value, None if refs is None else float(np.mean(refs)), split)
+        fitted = bool(metrics[split].get("fitted"))
+        whole = _poor(value, None if refs is None else float(np.mean(refs)), split, fitted=fitted)
         if whole is not None or len(per) < 2:
             notes += [whole] if whole is not None else []
             continue
         # one useless output of several: the mean over outputs must not hide it
         for j, (name, entry) in enumerate(per.items()):
             v = entry.get("nmse")
-            note = None if v is None else _poor(v, None if refs is None else float(refs[j]), split, name)
+            note = None if v is None else _poor(v, None if refs is None else float(refs[j]), split, name, fitted)
             notes += [note] if note is not None else []
     carried = carry_over(metrics, search_validation(model))
     if ds is not None and runs is not None:
@@ -262,10 +265,12 @@ def search_validation(model: FittedModel) -> float | None:
 def carry_over(metrics: Mapping[str, Any], searched: float | None = None) -> list[Note]:
     """``does-not-carry-over`` notes: test splits (``test``, ``test:<name>``) whose NMSE is at least
     :data:`CARRY_OVER_FACTOR` x the validation NMSE and at least :data:`CARRY_OVER_FLOOR` %. Without a
-    validation split, ``searched``: the validation NMSE of the search that chose the model."""
+    validation split, or when its samples were fitted (``fitted``: family auto's refit on every sample),
+    ``searched``: the validation NMSE of the search that chose the model."""
     validation = (metrics.get("validation") or {}).get("nmse")
     what = "validation NMSE"
-    if (validation is None or not np.isfinite(validation)) and searched is not None:
+    fitted = bool((metrics.get("validation") or {}).get("fitted"))
+    if (validation is None or not np.isfinite(validation) or fitted) and searched is not None:
         validation, what = searched, "validation NMSE in the search (held out of its fits)"
     if validation is None or not np.isfinite(validation):
         return []

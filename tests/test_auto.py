@@ -514,6 +514,9 @@ def test_cli_fit_prints_the_leaderboard_and_records_the_search(tmp_path, cli):
     payload = json.loads((tmp_path / "fit.json").read_text())
     assert payload["search"]["winner"].startswith("narx-")
     assert all("verdict" in c for c in payload["search"]["candidates"])
+    # refitted on the validation samples too: their row is no hold-out, and says so
+    assert payload["search"]["refit"]["refitted"] and payload["metrics"]["validation"]["fitted"] is True
+    assert "validation (fitted)" in result.output
     shown = cli("inspect", tmp_path / "auto-test.h5")
     assert "chosen by family auto" in shown.output
     # the leaderboard's footnote names inspect --json for every candidate: it has them

@@ -530,6 +530,11 @@ def test_carry_over_thresholds():
     (note,) = carry_over({"train": {"nmse": 0.001}, "test": {"nmse": 45.8}}, searched=0.0054)
     assert note.kind == "does-not-carry-over" and "validation NMSE in the search" in note.text
     assert carry_over({"validation": {"nmse": 30.0}, "test": {"nmse": 45.8}}, searched=0.0054) == []  # its own wins
+    # refitted on the validation samples too: their score is in-sample, the search's is the hold-out
+    refitted = {"validation": {"nmse": 0.5, "fitted": True}}
+    assert carry_over({**refitted, "test": {"nmse": 20.0}}, searched=3.0) == []  # 40 x the fitted, 6.7 x the search
+    (note,) = carry_over({**refitted, "test": {"nmse": 45.8}}, searched=2.0)
+    assert "validation NMSE in the search" in note.text and "(2 %)" in note.text
     auto = SimpleNamespace(search={"winner": "narx-1", "candidates": [{"key": "narx-1", "validation_nmse": 0.0054}]})
     assert search_validation(auto) == 0.0054 and search_validation(SimpleNamespace(search=None)) is None
 

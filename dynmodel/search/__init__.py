@@ -124,6 +124,8 @@ def fit_auto(spec: Spec, ds: Dataset, progress: Progress = no_progress):
     protocol.check_warmup(model.family, ds, spec.source)
     metrics, runs = evaluate(model, ds, list(spec.evaluation.metrics), spec.evaluation.one_step)
     model.metrics = protocol.report(metrics, ds, protocol.units_of(spec, ds))
+    if trained is not ds and "validation" in model.metrics:  # its samples were fitted: no hold-out score
+        model.metrics["validation"]["fitted"] = True
     model.search = record
     return model, runs
 
