@@ -440,6 +440,30 @@ def _test_outputs_unread(case: FamilyCase) -> None:
     require(val is not None and math.isfinite(val), f"NaN test outputs were read: validation NMSE {val}")
 
 
+@family_check("frozen_config", hook="frozen_config")
+def _frozen_config(case: FamilyCase) -> None:
+    """``family: auto``'s refit: the configuration a fit froze (and its warm start, if offered) fits again without
+    a validation split, as the search fits it on every sample; None (the family declines) passes."""
+    config = case.fitted().frozen_config()
+    if config is None:
+        return
+    require(
+        isinstance(config, dict) and isinstance(config.get("params"), dict), "frozen_config() gives {'params': {...}}"
+    )
+    cost = config.get("cost")
+    require(cost is None or cost in COSTS, f"frozen_config()'s cost {cost!r} is None or one of {COSTS}")
+    options = {**case.fit_options, **({"cost": cost} if cost else {})}
+    starts = {"params": config["params"]}
+    if config.get("warm") is not None:
+        require(isinstance(config["warm"], dict), "frozen_config()'s 'warm' is params (a dict)")
+        starts["warm"] = config["warm"]
+    for name, params in starts.items():
+        est = case.cls(**params)
+        cast(Any, est).fit(case.u, case.y, validation=None, seed=0, **options)
+        y = case.predict(est)
+        require(np.all(np.isfinite(y)), f"the refit from frozen_config()'s '{name}' predicts non-finite outputs")
+
+
 @family_check("driven_system", hook="driven_system")
 def _driven_system(case: FamilyCase) -> None:
     from .reliability.system import DrivenSystem

@@ -57,7 +57,7 @@ def _example_family():
 @pytest.mark.parametrize("cost", ["mse1", "mse_inf"])
 def test_the_example_third_party_family_keeps_the_contract(cost, tmp_path):
     results = check_family(_example_family(), fit_options={"cost": cost}, tmp_path=tmp_path)
-    assert [r.name for r in results if r.status == "skipped"] == ["driven_system"]
+    assert [r.name for r in results if r.status == "skipped"] == ["frozen_config", "driven_system"]
 
 
 def test_the_installed_example_is_the_one_in_examples():
@@ -139,6 +139,19 @@ class ForgetsAnArray(Linear):
         return self
 
 
+class FreezesWhatNeedsValidation(Linear):
+    """Its fit needs a validation split, yet it offers a configuration to fit again without one (the annealed
+    RNN inherited such a hook from the echo state network: family auto's refit failed after its work)."""
+
+    def fit(self, data, cost="mse1", rng=None, progress=no_progress):
+        if not data.has("validation"):
+            raise ValueError("this family optimises on the validation split; give one")
+        return super().fit(data, cost, rng, progress)
+
+    def frozen_config(self):
+        return {"params": {"lags": self.params.lags}, "cost": None}
+
+
 class DriftingSignature(Linear):
     def __init__(self, *, lags: int = 4) -> None:  # Params says 3
         Family.__init__(self, **constructor_arguments(locals()))
@@ -157,6 +170,7 @@ def test_a_minimal_family_passes():
         (ForgetsAnArray, "save_load", "predictions after load are identical"),
         (ForgetsAnArray, "model_space", "from_arrays\\(to_arrays\\(\\)\\) simulates identically"),
         (DriftingSignature, "constructor", "the default of 'lags' is 4, Params declares 3"),
+        (FreezesWhatNeedsValidation, "frozen_config", "optimises on the validation split"),
     ],
 )
 def test_each_check_catches_its_breach(cls, check, reason):

@@ -109,8 +109,9 @@ class NarxFamilyParams(FamilyParams):
         None,
         description="with 'terms' and cost mse_inf: start the free-running estimation from these weights (one per "
         "term, in the order of 'terms'; {output: [...]} per output) instead of from least squares: a warm start, e.g. "
-        "from a model fitted on fewer samples. family: auto gives it when it fits a model grown on the free-running "
-        "error again on every sample (least squares is no start for those weights)",
+        "from a model fitted on fewer samples. The weights act on the scaled data (model space, as dynmodel inspect "
+        "prints them), so they hold for the scaling they were fitted with. family: auto uses them to fit its chosen "
+        "model again on every sample from the weights it validated",
     )
     selection: Literal["one_step", "free_run"] = Field(
         "one_step",
