@@ -456,10 +456,11 @@ class Family(ABC):
         """How to fit this fitted model's configuration again on other data without a validation split, every
         choice it made on validation frozen (a selected structure, a tuned factor): ``{"params": {...}, "cost":
         name or None}`` (None: the cost it was fitted with), optionally with ``"warm": {...}``: params that start
-        from this model's own fitted values (a warm start; fitted with this model's preprocessing, in whose scaling
-        the values hold), tried when the refit from ``params`` fails or stalls, or first (``"warm_first": True``)
-        with ``params`` as the fallback; None (the default) when it cannot. ``family: auto`` refits its choice so on the training and validation samples
-        together, so that the model it keeps learns from every sample the search may read (docs/auto.md)."""
+        from this model's own fitted values (a warm start; fitted with this model's preprocessing, in whose
+        scaling the values hold), tried when the refit from ``params`` fails or stalls (not when its run leaves
+        the band), or first (``"warm_first": True``) with ``params`` as the fallback; None (the default) when it
+        cannot. ``family: auto`` refits its choice so on the training and validation samples together, so that
+        the model it keeps learns from every sample the search may read (docs/auto.md)."""
         return None
 
     def check_fitted(self) -> None:
