@@ -190,10 +190,8 @@ def main() -> None:
         for name in names:
             budget = args.budget if args.budget is not None else (None if name in LONG else 40.0)
             r = run(name, budget, args.families, Path(tmp))
-            print(
-                f"{name:16} {r['auto']:10.4g} {r['arx']:10.4g} {r['mean']:8.4g} {r['seconds']:5.0f}  {r['chosen']}",
-                flush=True,
-            )
+            arx, mean = (f"{v:.4g}" if np.isfinite(v) else "-" for v in (r["arx"], r["mean"]))
+            print(f"{name:16} {r['auto']:10.4g} {arx:>10} {mean:>8} {r['seconds']:5.0f}  {r['chosen']}", flush=True)
 
 
 if __name__ == "__main__":
