@@ -144,13 +144,8 @@ LONG = {"one-million": one_million}
 def run(name: str, budget: float | None, families: list[str] | None, folder: Path) -> dict[str, object]:
     columns, inputs = {**CASES, **LONG}[name]()
     outputs = [c for c in columns if c not in inputs]
-    np.savetxt(
-        folder / f"{name}.csv",
-        np.column_stack(list(columns.values())),
-        delimiter=",",
-        header=",".join(columns),
-        comments="",
-    )
+    table = np.column_stack(list(columns.values()))
+    np.savetxt(folder / f"{name}.csv", table, delimiter=",", header=",".join(columns), comments="")
     params: dict[str, object] = {} if budget is None else {"budget": budget}
     if families:
         params["families"] = families
