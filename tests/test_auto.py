@@ -1042,10 +1042,10 @@ def test_the_annealed_rnn_has_no_frozen_configuration_to_refit():
     assert fitted.frozen_config() is None
 
 
-def test_esn_freezes_the_number_of_readout_terms_for_a_refit():
+def test_esn_freezes_the_number_of_readout_terms_for_a_refit(tmp_path):
     """Esn.frozen_config: the same training data without a validation split give the same FOS readout (as many
-    terms as the validation stopped at, the network fixed by the seed); a ridge factor chosen on validation
-    cannot be frozen."""
+    terms as the validation stopped at, the network fixed by the seed), and the same ridge readout (the factor
+    chosen on validation, kept with the model, as a number)."""
     esn = registry.families()["esn"]
     u, y = narx(3000, 3)
     fitted = esn().fit(u, y, validation=0.2, seed=0)
@@ -1053,8 +1053,16 @@ def test_esn_freezes_the_number_of_readout_terms_for_a_refit():
     assert config is not None and config["params"]["readout"]["max_terms"] == len(fitted.selected_[0]) + 1
     again = esn(**config["params"]).fit(u[:2400], y[:2400], validation=None, seed=0)
     np.testing.assert_array_equal(again.W_, fitted.W_)
-    ridge = esn(readout={"solver": "ridge"}).fit(u, y, validation=0.2, seed=0)
-    assert ridge.frozen_config() is None
+    ridge = esn(readout={"solver": "ridge"}).fit(u, y, validation=0.2, seed=0)  # ridge: auto
+    config = ridge.frozen_config()
+    assert config is not None and config["params"]["readout"]["ridge"] == ridge.readout_alpha_ > 0
+    again = esn(**config["params"]).fit(u[:2400], y[:2400], validation=None, seed=0)
+    np.testing.assert_allclose(again.W_, ridge.W_, rtol=1e-9, atol=1e-12)
+    from dynmodel import store
+
+    store.save(ridge.model_, tmp_path / "ridge.h5")  # the factor chosen is kept with the model
+    loaded = store.load(tmp_path / "ridge.h5").family.frozen_config()
+    assert loaded is not None and loaded["params"]["readout"]["ridge"] == config["params"]["readout"]["ridge"]
 
 
 def _three_recordings(tmp_path: Path, budget: float) -> tuple[dict[str, Any], Any]:

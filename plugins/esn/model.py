@@ -195,7 +195,11 @@ class EchoStateNetwork(Family):
         )
         train = moments["train"]
         progress("readout", None, f"{self.params.readout.solver} readout on {train.n} samples")
-        self._set_readout(self._solve_readout(train, moments.get("validation")))
+        solved = self._solve_readout(train, moments.get("validation"))
+        self._set_readout(solved)
+        # the ridge factor used (``ridge: auto``: the one chosen on validation), for frozen_config
+        alpha = solved.info.get("alpha") if self.params.readout.solver == "ridge" else None
+        self.readout_alpha_: float | None = None if alpha is None else float(alpha)
         self.refinement_: list[dict[str, float]] = []
         if cost == "mse_inf" and self.external:
             self._refine(data, progress)
@@ -380,6 +384,7 @@ class EchoStateNetwork(Family):
             "n_inputs": self.n_inputs_,
             "n_outputs": self.n_outputs_,
             "refinement": self.refinement_,
+            "readout_alpha": getattr(self, "readout_alpha_", None),
         }
         return arrays, attrs
 
@@ -398,18 +403,24 @@ class EchoStateNetwork(Family):
             self.clip_lo_ = np.asarray(arrays["clip_low"], dtype=np.float64)
             self.clip_hi_ = np.asarray(arrays["clip_high"], dtype=np.float64)
         self.refinement_ = list(attrs.get("refinement") or [])
+        alpha = attrs.get("readout_alpha")
+        self.readout_alpha_ = None if alpha is None else float(alpha)
         return self
 
     def frozen_config(self) -> dict[str, Any] | None:
         """The given parameters with the readout's choice frozen: a FOS readout keeps as many terms as it chose on
         validation (``max_terms``: its states and drive terms and the constant; the network itself is fixed by
-        the seed). An external network's refinement then keeps its best iterate on the training run. None for a
-        ridge factor chosen on validation (it is not kept)."""
+        the seed); a ridge factor chosen on validation (``ridge: auto``) becomes the number it chose. An external
+        network's refinement then keeps its best iterate on the training run. None for a ridge factor chosen on
+        validation by a model saved before the factor was kept."""
         self.check_fitted()
         r = self.params.readout
-        if r.solver == "ridge" and r.ridge == "auto":
-            return None
         readout = dict(self._given.get("readout") or {})
+        if r.solver == "ridge" and r.ridge == "auto":
+            alpha = getattr(self, "readout_alpha_", None)
+            if alpha is None:
+                return None
+            readout["ridge"] = alpha
         if r.solver == "fos":
             readout["max_terms"] = int(max(len(s) for s in self.selected_)) + 1
         return {"params": {**self._given, "readout": readout}, "cost": None}
