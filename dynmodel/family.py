@@ -466,3 +466,10 @@ class Family(ABC):
     def check_fitted(self) -> None:
         if not any(k.endswith("_") and not k.startswith("_") for k in vars(self)):
             raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit() first")
+
+
+def defines_hook(cls: type, hook: str) -> bool:
+    """Does ``cls`` provide ``hook`` beyond what :class:`Family` itself defines (an optional hook of the contract:
+    ``frozen_config``, ``search_space``, ...)?"""
+    mine = inspect.getattr_static(cls, hook, None)
+    return mine is not None and mine is not inspect.getattr_static(Family, hook, None)

@@ -41,7 +41,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from .errors import DynmodelError
-from .family import Family, NotFittedError, Simulation, field_doc, signature_default
+from .family import Family, NotFittedError, Simulation, defines_hook, field_doc, signature_default
 from .metrics import COSTS
 
 # ---------------------------------------------------------------------------- the generated system
@@ -86,12 +86,6 @@ def require_identical(actual: np.ndarray, expected: np.ndarray, message: str) ->
         differ = ~((a == b) | (np.isnan(a) & np.isnan(b)))
         worst = float(np.nanmax(np.abs(a - b))) if np.isfinite(a - b).any() else float("nan")
         raise AssertionError(f"{message}: {int(differ.sum())} of {a.size} values differ, by up to {worst:.3g}")
-
-
-def defines_hook(cls: type, hook: str) -> bool:
-    """Does ``cls`` provide ``hook`` beyond what :class:`Family` itself defines?"""
-    mine = inspect.getattr_static(cls, hook, None)
-    return mine is not None and mine is not inspect.getattr_static(Family, hook, None)
 
 
 @dataclass(frozen=True)

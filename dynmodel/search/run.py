@@ -40,7 +40,7 @@ from ..data.derived import position_like
 from ..data.repeats import repeat_note, repeats_training
 from ..errors import DynmodelError, interruption
 from ..extensions import merge
-from ..family import Family, Progress, no_progress
+from ..family import Progress, defines_hook, no_progress
 from ..spec import IN_MEMORY
 from .checks import affine, failed_split, linear_band
 from .params import AutoParams, searchable_families
@@ -889,7 +889,7 @@ class Search:
         (cross-validated folds, recordings left out); and its refit on every fitting sample
         (:meth:`_refit_on_all`) when its family can freeze its configuration."""
         cls = registry.families().get(leader.cand.family)
-        frozen = cls is not None and cls.frozen_config is not Family.frozen_config and not leader.stands_screened
+        frozen = cls is not None and defines_hook(cls, "frozen_config") and not leader.stands_screened
         every = self.ds.n_scored("train") + self.ds.n_scored("validation")
         work = estimated_work(leader.cand, self.ctx, every) + TASK_OVERHEAD if frozen else 0.0
         if self.mode in ("holdout", "tail"):
@@ -1064,7 +1064,7 @@ class Search:
         assert config is not None
         every = view(self.ds, Layout("all"))
         seed = e.summaries[level].median_seed
-        before: list[float | None] = []  # the model validated's fit error there, computed once when needed
+        before = self._fit_error(model, every)  # the model validated's fit error on those samples
 
         def attempt(warm: bool) -> tuple[TaskResult | None, str | None, bool]:
             """One refit (``warm``: from the model validated's values, with its preprocessing, for those values
@@ -1090,19 +1090,10 @@ class Search:
                 return r, failed_split(r.checks) or r.message or r.status, True
             if not r.checks.get("ok", False):
                 return r, failed_split(r.checks) or r.message or r.status, False
-            if not before:
-                before.append(self._fit_error(model, every))
-            if r.score is not None and before[0] is not None and not (r.score <= REFIT_WORSE * before[0]):
-                # a NaN score is worse too
-                return (
-                    r,
-                    (
-                        f"its free run fits those samples clearly worse than the model validated: NMSE {r.score:.4g} % "
-                        f"against {before[0]:.4g} %"
-                    ),
-                    True,
-                )
-            return r, None, False
+            if r.score is None or before is None or r.score <= REFIT_WORSE * before:  # a NaN score is worse too
+                return r, None, False
+            stalled = f"its free run fits those samples clearly worse than the model validated: NMSE {r.score:.4g} %"
+            return r, f"{stalled} against {before:.4g} %", True
 
         self.progress("search", None, f"fitting {e.label} again on all {every.n_scored('train')} training samples")
         warm = bool(config.get("warm_first")) and bool(config.get("warm"))

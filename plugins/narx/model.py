@@ -283,7 +283,7 @@ class Narx(Family):
         if p.ridge is not None:
             self._ridge(data, train, progress)
 
-        start = self._initial_weights(data.output_names, cost) if fixed is not None else None
+        start = self._initial_weights(data.output_names, cost)  # given only with terms (the params check it)
         if cost == "mse_inf":
             self._refine(data, progress, initial=start)
         self._warn_if_input_free()
