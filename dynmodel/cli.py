@@ -229,7 +229,9 @@ def _fmt(v: Any, digits: int = 4) -> str:
 
 def metrics_table(metrics: dict[str, Any], title: str | None = None) -> Table:
     table = Table(title=title, title_justify="left")
-    label = {k: f"{k} (fitted)" if m.get("fitted") else k for k, m in metrics.items()}  # family auto's refit
+    from .metrics import split_label
+
+    label = {k: split_label(k, m) for k, m in metrics.items()}
     table.add_column("split", min_width=max((len(v) for v in label.values()), default=5))
     table.add_column("samples", justify="right")
     shown = [k for k in ("nmse", "max", "rmse", "fit") if k == "nmse" or any(k in m for m in metrics.values())]

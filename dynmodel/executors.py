@@ -22,6 +22,7 @@ import os
 import socket
 import tempfile
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from contextlib import contextmanager
@@ -150,11 +151,30 @@ def warm_worker() -> int:
     return os.getpid()
 
 
-def _pool_worker_init() -> None:
-    """A local pool worker: Ctrl-C is the parent's business (it stops the workers), then prepare."""
+#: seconds between a pool worker's checks that the process that started it still runs
+PARENT_CHECK = 1.0
+
+
+def _exit_with_parent(parent: int) -> None:
+    """A pool worker's watchdog thread: exit as soon as the process that started the pool is gone. A parent
+    killed outright (SIGKILL, out of memory, a script ended by SIGTERM's default action, a notebook kernel
+    restarted) cannot stop its workers, and each would otherwise finish its fit, then wait forever to hand
+    over a result nobody reads, holding its memory (two such workers of a killed benchmark script were found
+    25 minutes later, 300 MB each). An orphan is adopted by another process, so its parent id changes."""
+    while True:
+        time.sleep(PARENT_CHECK)
+        if os.getppid() != parent:
+            os._exit(1)
+
+
+def _pool_worker_init(parent: int | None = None) -> None:
+    """A local pool worker: Ctrl-C is the parent's business (it stops the workers), the worker ends with
+    the parent (:func:`_exit_with_parent`), then prepare."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if parent is not None and os.getppid() == parent:
+        threading.Thread(target=_exit_with_parent, args=(parent,), name="exit-with-parent", daemon=True).start()
     prepare_worker()
 
 
@@ -256,7 +276,10 @@ class LocalPoolExecutor(Executor):
         import multiprocessing
 
         return ProcessPoolExecutor(
-            self.workers, mp_context=multiprocessing.get_context("spawn"), initializer=_pool_worker_init
+            self.workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_pool_worker_init,
+            initargs=(os.getpid(),),
         )
 
     def submit(self, fn: Callable, /, *args: Any, **kwargs: Any) -> Future:

@@ -11,8 +11,8 @@ recordings; ``var(y)`` and ``std(y)`` are those of the measured output on the sa
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Literal, get_args
+from collections.abc import Callable, Mapping
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -25,6 +25,14 @@ DEFAULT_METRICS: tuple[MetricName, ...] = ("nmse", "max")
 HIGHER_IS_BETTER: tuple[MetricName, ...] = ("fit",)
 #: column headings of tables
 METRIC_LABELS: dict[str, str] = {"nmse": "NMSE %", "max": "MAX", "rmse": "RMSE", "fit": "fit %"}
+
+
+def split_label(split: str, entry: Mapping[str, Any]) -> str:
+    """How a split's scores are named to the user: ``validation (fitted)`` when its samples were fitted (family
+    auto's refit on every sample: ``fitted`` in its metrics), else the split's name."""
+    return f"{split} (fitted)" if entry.get("fitted") else split
+
+
 #: the costs a family is fitted with: mse1, the one-step error; mse_inf, the free-run error (thesis 5.1)
 CostName = Literal["mse1", "mse_inf"]
 COSTS: tuple[CostName, ...] = get_args(CostName)

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .data.dataset import is_test
+from .metrics import split_label
 
 if TYPE_CHECKING:
     from .data.dataset import Dataset
@@ -86,15 +87,16 @@ def trivial_nmse(ds: Dataset, split: str, warmup: int = 0) -> float | None:
     return None if each is None else float(np.mean(each))
 
 
-def _poor(value: float, ref: float | None, split: str, output: str | None = None, fitted: bool = False) -> Note | None:
+def _poor(
+    value: float, ref: float | None, split: str, output: str | None = None, shown: str | None = None
+) -> Note | None:
     """A ``poor`` note when ``value`` (NMSE %) reaches :data:`POOR_NMSE` or the trivial reference ``ref``
-    (``fitted``: the split's samples were fitted, family auto's refit)."""
+    (``shown``: the split as the user reads it, :func:`dynmodel.metrics.split_label`)."""
     if not (value >= POOR_NMSE or (ref is not None and value >= ref)):
         return None
     worse = f", no better than the training mean's {ref:.3g} %" if ref is not None and value >= ref else ""
     on = f" on output '{output}'" if output is not None else ""
-    shown = f"{split} (fitted)" if fitted else split
-    return Note("poor", split, f"its {shown} NMSE is {value:.3g} %{on}{worse}", float(value), output)
+    return Note("poor", split, f"its {shown or split} NMSE is {value:.3g} %{on}{worse}", float(value), output)
 
 
 def _scored_and_mean_input(
@@ -224,15 +226,15 @@ def assess(
             continue
         refs = trivial_nmse_each(ds, split, model.warmup) if ds is not None else None
         per = metrics[split].get("per_output") or {}
-        fitted = bool(metrics[split].get("fitted"))
-        whole = _poor(value, None if refs is None else float(np.mean(refs)), split, fitted=fitted)
+        shown = split_label(split, metrics[split])
+        whole = _poor(value, None if refs is None else float(np.mean(refs)), split, shown=shown)
         if whole is not None or len(per) < 2:
             notes += [whole] if whole is not None else []
             continue
         # one useless output of several: the mean over outputs must not hide it
         for j, (name, entry) in enumerate(per.items()):
             v = entry.get("nmse")
-            note = None if v is None else _poor(v, None if refs is None else float(refs[j]), split, name, fitted)
+            note = None if v is None else _poor(v, None if refs is None else float(refs[j]), split, name, shown)
             notes += [note] if note is not None else []
     carried = carry_over(metrics, search_validation(model))
     if ds is not None and runs is not None:

@@ -1411,6 +1411,24 @@ def test_the_choice_prefers_a_model_without_an_output_clip_its_input_drives_it_i
     assert c.key == "a" and c.verdicts["b"].startswith("set aside") and not c.notes
 
 
+def test_the_choice_prefers_a_model_that_forgets_its_start_when_the_test_inputs_leave_the_training_range():
+    """Beyond the training range (an excursion over 5 % of its width), a model whose free run remembers the
+    outputs it started from (a second attractor) is set aside when one shown to forget them validates within 25 %;
+    inside the range, or with no such model, the validation decides as before."""
+    labels = {k: k for k in "abc"}
+    stuck, forgets, far = _s(1.0, 50), _s(1.11, 42), _s(1.5, 10)
+    stuck.memory, forgets.memory, far.memory = 7.9, 0.0, 0.0
+    c = choose({"a": stuck, "b": forgets}, labels, excursion=0.25)
+    assert c.key == "b" and c.verdicts["a"].startswith("set aside: its free run remembers")
+    assert "remembers the outputs it started from" in c.notes[0] and "7.9 output standard deviations" in c.notes[0]
+    assert choose({"a": stuck, "b": forgets}, labels).key == "a"  # the test inputs stay inside: no preference
+    assert choose({"a": stuck, "c": far}, labels, excursion=0.25).key == "a"  # none forgets within 25 %
+    network = _s(1.2, 200)  # reads no measured output (memory None): it shows neither, and is not preferred
+    assert choose({"a": stuck, "b": network}, labels, excursion=0.25).key == "a"
+    c = choose({"a": stuck, "b": forgets, "n": _s(1.05, 200)}, {**labels, "n": "n"}, excursion=0.25)  # nor set aside
+    assert c.key == "b" and c.verdicts["a"].startswith("set aside") and c.verdicts["n"] == "within the tie, larger"
+
+
 def _blocks(score: float, values: list[float]) -> Summary:
     s = _s(score, 5)
     s.blocks = np.asarray(values)

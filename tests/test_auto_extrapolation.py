@@ -88,6 +88,13 @@ def test_a_test_input_beyond_the_training_range_gets_several_full_fits(tmp_path)
     assert _full(wide) - _second_chances(wide) == min(SURVIVORS, _screened(wide)) >= 2
     assert any("leave the training range" in why for why in wide["cautious"])
     assert not any("about linear" in n for n in wide["notes"])  # a nonlinear system: the strict band stands
+    # the start memory (three free runs per recording) is measured only where the choice reads it
+    memories = {
+        name: [c["levels"]["final"].get("start_memory") for c in rec["candidates"] if "final" in c["levels"]]
+        for name, rec in (("inside", small), ("beyond", wide))
+    }
+    assert all(m is None for m in memories["inside"])
+    assert any(isinstance(m, float) for m in memories["beyond"]), memories
 
 
 def test_a_budget_that_allows_it_fits_every_candidate_screened_near_the_best_in_full(tmp_path):

@@ -43,3 +43,35 @@ def test_with_a_separate_test_recording_auto_is_as_good_as_the_narx_default(name
     assert any("also counts its start as a test recording's" in n for n in auto.search["notes"])
     assert auto.metrics["test"]["nmse"] < ceiling
     assert auto.metrics["test"]["nmse"] < 1.05 * default.metrics["test"]["nmse"]
+
+
+SILVERBOX = SHARED_DATA / "silverbox"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not SILVERBOX.is_dir(), reason=f"Silverbox data not found at {SILVERBOX}")
+def test_on_silverbox_auto_prefers_a_model_that_forgets_its_start_and_extrapolates_the_arrow_as_an_expert():
+    """The benchmark's protocol, the default budget (specs/benchmarks/silverbox-auto.yaml). The arrow's tail goes
+    25 % beyond the training input range. The degree-4 model that validates best remembers its start (a second
+    attractor at its output clip) and tested 0.79 mV RMSE there; the search now fits the smallest screened
+    candidates in full, prefers the 42-term model that forgets its start (validated 11 % behind), and tests at
+    0.31 mV, the tuned figure (0.311 mV; the issue asks for at most 1.15 x that, 0.358)."""
+    import yaml
+
+    from dynmodel import engine
+    from dynmodel.data import load_dataset
+    from dynmodel.search.checks import FORGETS
+    from dynmodel.spec import validate_spec
+
+    folder = ROOT / "specs" / "benchmarks"
+    raw = yaml.safe_load((folder / "silverbox-auto.yaml").read_text())
+    raw["data"]["root"] = str(SILVERBOX)
+    spec = validate_spec(raw, "silverbox-auto.yaml", folder)
+    model, _ = engine.fit_dataset(spec, load_dataset(spec))
+    chosen = next(c for c in model.search["candidates"] if c["verdict"] == "chosen")
+    assert chosen["levels"]["final"]["start_memory"] <= FORGETS
+    assert any(c["verdict"].startswith("set aside: its free run remembers") for c in model.search["candidates"])
+    rmse_mv = {k: v["rmse"] for k, v in model.metrics.items() if k.startswith("test")}  # in mV (rmse_units)
+    assert model.metrics["test:arrow-full"].get("rmse_units") == "mV"
+    assert rmse_mv["test:arrow-full"] <= 0.358, rmse_mv
+    assert rmse_mv["test:multisine"] <= 0.301 and rmse_mv["test:arrow-no-extrapolation"] <= 0.259, rmse_mv

@@ -151,3 +151,39 @@ def test_a_test_recording_without_a_window_fails_only_when_both_starts_leave_the
     failed = checks.band_checks(_KickedByItsStart(), mid_motion)
     assert not failed["ok"] and failed["test"]["sample"] < 20
     assert checks.failed_split(failed).endswith("(run from rest, and settled at its first input)")
+
+
+def _narx_on(tmp_path, y_of_u, family: str = "narx") -> tuple:
+    """A model of ``family`` (defaults) fitted on 3000 samples of y = ``y_of_u(u)`` under a random input, and its
+    dataset."""
+    from dynmodel import engine
+
+    u = np.random.default_rng(0).standard_normal(3000)
+    write_csv(tmp_path / "m.csv", {"u": u, "y": y_of_u(u)})
+    raw = {"data": {"path": "m.csv", "input": ["u"], "output": ["y"]}, "model": {"family": family}}
+    spec = validate_spec(raw, "<test>", tmp_path)
+    data = load_dataset(spec)
+    model, _ = engine.fit_dataset(spec, data)
+    return model, data
+
+
+def _first_order(u: np.ndarray) -> np.ndarray:
+    y = np.zeros_like(u)
+    for t in range(1, len(u)):
+        y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1]
+    return y
+
+
+def test_a_stable_model_forgets_its_start_and_an_integrator_remembers_it(tmp_path):
+    """The start memory (the replica test cut to two replicas): runs started at rest at the bottom and the top of
+    the training output range meet the run from the usual start when the model is stable (0), and stay apart by
+    their offset when it integrates (a level it keeps, in output standard deviations); a model
+    that reads no measured output has none to remember (None)."""
+    stable, data = _narx_on(tmp_path, _first_order)
+    assert checks.start_memory(stable, data) < 1e-6
+    assert not checks.remembers(checks.start_memory(stable, data))
+    walk, data = _narx_on(tmp_path, lambda u: np.cumsum(0.1 * u))
+    memory = checks.start_memory(walk, data)
+    assert memory > 0.1 and checks.remembers(memory)
+    network, data = _narx_on(tmp_path, _first_order, family="esn")
+    assert network.warmup == 0 and checks.start_memory(network, data) is None

@@ -122,6 +122,23 @@ def alive(pid: int) -> bool:
         return False
 
 
+def still_running(pids: list[int], seconds: float) -> list[int]:
+    """The processes of ``pids`` still alive after waiting up to ``seconds`` for all of them to end."""
+    deadline = time.monotonic() + seconds
+    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return [p for p in pids if alive(p)]
+
+
+def kill_all(pids: list[int]) -> None:
+    """Never leave a process behind, whatever happened."""
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
 pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="real signals and /proc")
 
 
@@ -231,17 +248,10 @@ def test_sigterm_stops_a_sweeps_worker_processes_and_keeps_its_finished_points(t
         assert len(workers) >= 2  # the pool's workers (and multiprocessing's resource tracker)
         run.proc.send_signal(signal.SIGTERM)
         code = run.finish(60)
-        deadline = time.monotonic() + 10
-        while any(alive(p) for p in workers) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        left = [p for p in workers if alive(p)]
+        left = still_running(workers, 10)
     finally:
         run.kill()
-        for pid in workers:  # never leave a process behind, whatever happened
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+        kill_all(workers)
     assert code == 143, (code, run.lines)
     assert not left, f"worker processes still running after SIGTERM: {left}"
     finished = sorted(p.stem for p in (out / "points").iterdir())
@@ -277,3 +287,40 @@ def test_ctrl_c_while_the_diagnosis_report_is_written_leaves_no_partial_folder(t
     assert not report.exists() or (report / "index.md").is_file(), sorted(os.listdir(report))
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary folder left
     check_output(report, "report", option="--report")  # a rerun is accepted
+
+
+# ------------------------------------------------------------------------------ issue: workers outliving a killed parent
+
+_POOL_SCRIPT = """
+import sys, time
+from dynmodel.executors import make_executor
+
+if __name__ == "__main__":
+    pool = make_executor(workers=2)
+    futures = [pool.submit(time.sleep, 120) for _ in range(2)]
+    while not all(f.running() for f in futures):
+        time.sleep(0.05)
+    print(" ".join(str(pid) for pid in pool._pool._processes), flush=True)
+    time.sleep(600)
+"""
+
+
+def test_pool_workers_exit_when_the_process_that_started_them_is_killed(tmp_path):
+    """A script (or a notebook kernel) using the local process pool is killed outright (SIGKILL: nothing runs
+    on its side): its workers notice within seconds that their parent is gone and exit, instead of finishing
+    their fit and waiting forever to hand over a result nobody reads."""
+    script = tmp_path / "pool.py"
+    script.write_text(_POOL_SCRIPT)
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, cwd=tmp_path)
+    workers: list[int] = []
+    try:
+        assert proc.stdout is not None
+        workers = [int(pid) for pid in proc.stdout.readline().split()]
+        assert len(workers) == 2 and all(alive(p) for p in workers)
+        proc.kill()
+        proc.wait(10)
+        left = still_running(workers, 15)
+    finally:
+        proc.kill()
+        kill_all(workers)
+    assert not left, f"pool workers still running 15 s after their parent was killed: {left}"

@@ -48,6 +48,8 @@ model whose free run barely moves when the input is held at its mean ignores its
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -209,15 +211,39 @@ def _run(model: FittedModel, rec: Any, start: np.ndarray | None, settle: int = 0
         return np.full_like(rec.y, np.nan)
 
 
+#: per recording: its free run from its usual start, how that start was read, and the past outputs it started from
+UsualRuns = dict[int, tuple[np.ndarray, str, np.ndarray]]
+
+
+def usual_runs(model: FittedModel, ds: Dataset) -> UsualRuns:
+    """Every recording's free run from the start its inputs tell (:func:`_start_outputs`), as its split (the first
+    that scores it) starts it; shared by :func:`band_checks` and :func:`start_memory`."""
+    train_mean = np.nanmean(ds.concat_outputs("train"), axis=0)
+    warm = model.warmup
+    owner: dict[int, str] = {}
+    for split in ds.splits():
+        for rec, _, _ in ds.ranges.get(split, []):
+            owner.setdefault(rec, split)
+    runs: UsualRuns = {}
+    for rec, split in sorted(owner.items()):
+        start, how = _start_outputs(ds, split, rec, warm, train_mean)
+        runs[rec] = (_run(model, ds.recordings[rec], start if warm else None), how, start)
+    return runs
+
+
 def band_checks(
-    model: FittedModel, ds: Dataset, envelope: dict[str, Any] | None = None, affine: bool = False
+    model: FittedModel,
+    ds: Dataset,
+    envelope: dict[str, Any] | None = None,
+    affine: bool = False,
+    runs: UsualRuns | None = None,
 ) -> dict[str, Any]:
     """Per split: ``{"ok": bool, "start": how runs started, "sample": first sample outside the band or None,
     "recording": its name}`` plus ``"ok"`` over all splits, and, where the linear reference's run (``envelope``:
     per split, its low and high per output) leaves the band, or the model is ``affine`` in its input (its band is
     :data:`AFFINE_BAND` wider), the same under the linear-system band as ``"wide"`` (see :func:`linear_band`).
-    Runs every recording once, and again settled where a run from rest of a model that starts from measured
-    outputs left the band (see the module docstring)."""
+    Runs every recording once (``runs``: those runs, :func:`usual_runs`, when already made), and again settled
+    where a run from rest of a model that starts from measured outputs left the band (see the module docstring)."""
     lo, hi, width = band(ds)
     margin = BAND * (1.0 - EDGE) * width
     wider: dict[str, tuple[np.ndarray, np.ndarray]] = {}
@@ -229,16 +255,9 @@ def band_checks(
             low, high = np.minimum(low, np.asarray(env_lo) - margin), np.maximum(high, np.asarray(env_hi) + margin)
         if (low < lo).any() or (high > hi).any():
             wider[split] = (low, high)
-    train_mean = np.nanmean(ds.concat_outputs("train"), axis=0)
     warm = model.warmup
-    owner: dict[int, str] = {}
-    for split in ds.splits():
-        for rec, _, _ in ds.ranges.get(split, []):
-            owner.setdefault(rec, split)
-    runs: dict[int, tuple[np.ndarray, str, np.ndarray]] = {}
-    for rec, split in sorted(owner.items()):
-        start, how = _start_outputs(ds, split, rec, warm, train_mean)
-        runs[rec] = (_run(model, ds.recordings[rec], start if warm else None), how, start)
+    if runs is None:
+        runs = usual_runs(model, ds)
     settled: dict[int, np.ndarray] = {}
     out: dict[str, Any] = {"ok": True}
     wide: dict[str, Any] = {"ok": True}
@@ -270,6 +289,70 @@ def band_checks(
         wide["clipped"] = next((sp for sp in ds.splits() if (wide.get(sp) or {}).get("clip") is not None), None)
         out["wide"] = wide
     return out
+
+
+#: a run started from other past outputs that stays farther than this from the run from the usual start (RMS over
+#: the last tenth of a recording, in training output standard deviations) ...
+FORGETS = 0.01
+#: ... and keeps more than this fraction of its gap over the first tenth (a gap that shrinks is forgotten slowly: a
+#: plant whose time constant is long next to a short recording) keeps a memory of its start
+KEPT = 0.5
+#: samples of a recording the start memory reads (its first ones): a run keeps the memory of its start from the
+#: start on (Silverbox: 7.9 standard deviations over every tenth of every recording), and three free runs of an
+#: external echo state network of 400 elements over a million samples took 7 s per fit
+MEMORY_SAMPLES = 50000
+
+
+def start_memory(model: FittedModel, ds: Dataset, runs: UsualRuns | None = None) -> float | None:
+    """How far the free run of ``model`` remembers the past outputs it started from (the replica test of the
+    reliability check, thesis definition 4.4, cut to two replicas): on every recording's **inputs**, the run from
+    its usual start (``runs``: :func:`usual_runs`, when already made) against runs started at rest at the bottom
+    and at the top of the training output range, over a recording's first :data:`MEMORY_SAMPLES` samples; the
+    largest RMS difference over their last tenth that has not shrunk below :data:`KEPT` of its value over the
+    first tenth, in training output standard deviations (0 where every gap shrinks, inf where a run is not
+    finite). A reliable model forgets its start; a polynomial NARX model can hold a second attractor at its
+    output clip, which a run started there, or pushed there by an input beyond the training range, does not leave
+    (Silverbox: the degree-4 model chosen, 7.99 standard deviations, 0.55 mV test RMSE on the arrow's tail; a
+    42-term degree-3 model, 0, 0.31 mV). None for a model that reads no measured output (it always starts from
+    its own state)."""
+    if not model.warmup:
+        return None
+    if runs is None:
+        runs = usual_runs(model, ds)
+    y = ds.concat_outputs("train")
+    low, high = np.nanmin(y, axis=0), np.nanmax(y, axis=0)
+    scale = np.nanstd(y, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    worst = 0.0
+    for rec, (run, _, start) in runs.items():
+        recording = ds.recordings[rec]
+        if recording.n > MEMORY_SAMPLES:
+            recording = replace(recording, u=recording.u[:MEMORY_SAMPLES], y=recording.y[:MEMORY_SAMPLES])
+        usual = run[: recording.n]  # a free run is causal: its first samples are the run over the first inputs
+        tenth = recording.n // 10
+        if tenth < 1:
+            continue
+        for level in (low, high):
+            other = _run(model, recording, np.broadcast_to(level, start.shape).copy())
+            with np.errstate(invalid="ignore", over="ignore"):
+                first = np.sqrt(np.mean((other[:tenth] - usual[:tenth]) ** 2, axis=0)) / scale
+                last = np.sqrt(np.mean((other[-tenth:] - usual[-tenth:]) ** 2, axis=0)) / scale
+            if not np.isfinite(last).all():
+                return math.inf
+            kept = last > KEPT * np.where(np.isfinite(first), first, 0.0)
+            worst = max(worst, float(np.max(np.where(kept, last, 0.0))))
+    return worst
+
+
+def remembers(memory: float | None) -> bool:
+    """Whether a measured :func:`start_memory` says the model keeps a memory of its start."""
+    return memory is not None and not memory <= FORGETS
+
+
+def forgets(memory: float | None) -> bool:
+    """Whether a measured :func:`start_memory` shows that the model forgets its start (None, a model that reads no
+    measured output, shows neither: a network started from its own state can hold attractors of its own)."""
+    return memory is not None and memory <= FORGETS
 
 
 def linear_band(checks: dict[str, Any]) -> dict[str, Any]:

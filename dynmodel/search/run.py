@@ -9,7 +9,9 @@ Stages, each with members fixed before it starts (see :mod:`.plan` for the budge
 3. ``full``: the survivors (:meth:`Search.survivors`: the best :data:`SURVIVORS`, then every other one within
    :data:`SURVIVOR_FACTOR` of the best as far as the budget's share allows) in their full variant on the
    final layout (all training samples, or the folds), random ones with every seed (a screening fit that
-   already was a final one is not repeated);
+   already was a final one is not repeated); when the test inputs leave the training range and those that
+   validate about as well as the best all remember their start, up to :data:`FORGETTING` more, the smallest first
+   (:meth:`Search._stage_forgetting`);
 4. ``moves``: ``dynmodel diagnose``'s detectors on the leader, and the extensions they propose (the
    residual says what is missing: extend, refit, keep what validates);
 
@@ -42,10 +44,10 @@ from ..errors import DynmodelError, interruption
 from ..extensions import merge
 from ..family import Progress, defines_hook, no_progress
 from ..spec import IN_MEMORY
-from .checks import affine, failed_split, linear_band
+from .checks import affine, failed_split, forgets, linear_band, remembers
 from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, REFERENCE_WORKERS, TASK_OVERHEAD, Budget, Group
-from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, summarize
+from .select import ABOUT_AS_WELL, EXTRAPOLATION, POOR, Choice, Summary, choose, model_size, summarize
 from .space import SIGNED, Candidate, Found, SearchContext, candidates_of, estimated_work
 from .views import (
     MIN_BLOCK,
@@ -79,6 +81,8 @@ SURVIVORS = 3
 SURVIVOR_FACTOR = 3.0
 #: ... plus at most this many that validated better still but left the output band at screening only
 SECOND_CHANCES = 2
+#: ... and, when the models fitted in full all remember their start, at most this many more (:meth:`_stage_forgetting`)
+FORGETTING = 2
 #: candidates whose neighbours are measured
 GROW_FROM = 2
 #: training samples (the last ones) the inputs' dead times are read on (six inputs and outputs: about 1 s)
@@ -207,7 +211,9 @@ def _progress_span(stage: str) -> tuple[float, float]:
     if stage.startswith("moves"):
         r = int(stage.split()[1].rstrip(":")) - 1
         return 0.8 + 0.2 * r / MOVE_ROUNDS, 0.8 + 0.2 * (r + 1) / MOVE_ROUNDS
-    return {"screen": (0.0, 0.3), "grow": (0.3, 0.5), "full": (0.5, 0.8)}[stage]
+    if stage.startswith("full"):
+        return (0.5, 0.8) if stage == "full" else (0.75, 0.8)
+    return {"screen": (0.0, 0.3), "grow": (0.3, 0.5)}[stage]
 
 
 @dataclass(frozen=True)
@@ -493,6 +499,7 @@ class Search:
             dataset=self.ds if self.in_memory else None,
             moves=MOVES,
             envelope=self.envelope if kind == "fit" else None,
+            memory=kind == "fit" and self.extrapolates,
         )
 
     # ------------------------------------------------------------------ running a stage
@@ -774,7 +781,16 @@ class Search:
             if "screen" not in e.summaries:
                 e.verdict = "not run (budget)"
 
-    def _stage_full(self, keys: list[str]) -> None:
+    @property
+    def extrapolates(self) -> bool:
+        """Do the validation or test inputs leave the training range by more than :data:`.select.EXTRAPOLATION` of
+        its width? (Then the search fits several candidates in full, measures their start memory and prefers
+        one that forgets its start.)"""
+        return self.ctx.excursion > EXTRAPOLATION
+
+    def _final_groups(self, keys: list[str]) -> list[Group]:
+        """The full fits of ``keys`` the budget can take (:meth:`_affordable`): every seed, less those a screening
+        fit that already was a final one made."""
         groups = []
         for k in keys:
             e = self.entries[k]
@@ -784,14 +800,58 @@ class Search:
                 seeds = [s for s in seeds if s not in done]
             if seeds:
                 groups.append(self._group(e, "final", seeds))
-        groups = self._affordable(groups)
+        return self._affordable(groups)
+
+    def _stage_full(self, keys: list[str]) -> None:
+        groups = self._final_groups(keys)
         # the test inputs leave the training range: a validation inside it cannot rank finely how the models
         # extrapolate, so the choice is never left to a single full fit (the best SURVIVORS are fitted in full)
-        least = SURVIVORS if self.ctx.excursion > EXTRAPOLATION else 1
+        least = SURVIVORS if self.extrapolates else 1
         # a second chance never takes the place of a survivor that passed its screening band check
         least += sum(1 for k in keys if self._second_chance(k))
         taken = self.budget.take("full", groups, minimum=min(least, len(groups)))
         self._run("full", [t for g in taken for t in g.tasks])
+
+    def _stage_forgetting(self) -> None:
+        """When the test inputs leave the training range and every model fitted in full that validates within
+        :data:`.select.ABOUT_AS_WELL` of the best remembers the outputs its run started from
+        (:func:`.checks.start_memory`), up to :data:`FORGETTING` more screened candidates (within
+        :data:`SURVIVOR_FACTOR` of the best screening score) are fitted in full, the smallest first: the choice
+        prefers a model that forgets its start when it validates about as well (:func:`.select.choose`), and the
+        screening fit cannot tell which do (its least-squares weights forgot where the weights refined on the free
+        run remember: Silverbox, every NARX candidate). On Silverbox the three fitted in full remembered theirs;
+        the smallest screened candidate (42 terms) forgets its start and validates 11 % behind the best."""
+        if not self.extrapolates:
+            return
+        final = [k for k in self.ranking("final") if self._usable(k, "final")]
+        if not final:
+            return
+        leader = self.entries[final[0]].summaries["final"]
+        if not remembers(leader.memory):
+            return
+        for k in final:
+            s = self.entries[k].summaries["final"]
+            if s.score <= ABOUT_AS_WELL * leader.score and forgets(s.memory):
+                return
+        screened = [k for k in self.ranking("screen") if self._usable(k, "screen")]
+        if not screened:
+            return
+        best = self.entries[screened[0]].summaries["screen"].score
+        pool = [
+            k
+            for k in screened
+            if "final" not in self.entries[k].summaries
+            and self.entries[k].summaries["screen"].score <= SURVIVOR_FACTOR * max(best, 1e-12)
+        ]
+        smallest = sorted(pool, key=lambda k: (model_size(self.entries[k].summaries["screen"]), k))[:FORGETTING]
+        for k in smallest:
+            self.entries[k].origin += (
+                "; fitted in full, the smallest first, as every model fitted in full that validates about as well "
+                "as the best remembers the outputs its run started from (the test inputs leave the training range)"
+            )
+        groups = self._final_groups(smallest)
+        taken = self.budget.take("full", groups, minimum=len(groups))
+        self._run("full: forgetting", [t for g in taken for t in g.tasks])
 
     def _affordable(self, groups: list[Group]) -> list[Group]:
         """The full fits the budget can still take. A candidate whose full fits (every fold) are planned beyond
@@ -1090,6 +1150,12 @@ class Search:
                 return r, failed_split(r.checks) or r.message or r.status, True
             if not r.checks.get("ok", False):
                 return r, failed_split(r.checks) or r.message or r.status, False
+            if self.extrapolates and forgets(e.summaries[level].memory) and remembers(r.memory):
+                return (
+                    r,
+                    "its free run remembers the outputs it started from, where the model validated forgets them",
+                    True,
+                )
             if r.score is None or before is None or r.score <= REFIT_WORSE * before:  # a NaN score is worse too
                 return r, None, False
             stalled = f"its free run fits those samples clearly worse than the model validated: NMSE {r.score:.4g} %"
@@ -1212,6 +1278,8 @@ class Search:
             if not self.interrupted:
                 self._stage_full(surv)
                 self._decide_band()
+            if not self.interrupted:
+                self._stage_forgetting()
             if not self.interrupted:
                 self._stage_moves()
         except KeyboardInterrupt as exc:

@@ -19,6 +19,12 @@ The **choice** (:func:`choose`), in order:
    its training amplitude: a linear NARX model with its default clip validated as well as an unclipped one and
    scored 0.26 % test NMSE against 0.0003 %); the clip stays where nothing without one validates as well (a
    cart whose position drifts beyond its training range: every model that validated well met its clip there);
+   and, when the test inputs leave the training range by more than :data:`EXTRAPOLATION`, a model whose free
+   run remembers the outputs it started from (:func:`.checks.start_memory`: a second attractor or a mode that
+   never settles; the reliability of thesis definition 4.4) when one shown to forget them scores within
+   :data:`ABOUT_AS_WELL`; a network that reads no measured output shows neither (Silverbox: the degree-4 model
+   validated best and tested 0.55 mV on the arrow's tail; a 42-term degree-3 model that forgets its start
+   validated 11 % worse and tested 0.31 mV);
 3. candidates within a tie of the lowest score count as equal and the simplest of them wins: the tie is
    :data:`TIE` (1 %) normally, and :data:`CAUTIOUS_TIE` (10 %) when the validation cannot be trusted
    to rank finely: a short validation (cross-validated, or fewer than ``short`` scored samples), test
@@ -40,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import failed_split
+from .checks import failed_split, forgets, remembers
 
 TIE = 0.01
 CAUTIOUS_TIE = 0.10
@@ -76,6 +82,9 @@ class Summary:
     blocks_on: tuple = ()  # the views (layouts) those blocks lie in: only blocks of the same views are compared
     continued: np.ndarray | None = None  # the same blocks of the continued run alone, where a fresh start was mixed in
     nonlinearity: float | None = None  # how far from affine in its input (median over fits)
+    #: how far its free run remembers the outputs it started from (:func:`.checks.start_memory`, median over the
+    #: median seed's fits; None: it reads no measured output)
+    memory: float | None = None
     #: under the linear-system band, the split whose input drives the run kept to an output clip (the median seed's
     #: fits), else None (:func:`.checks.band_checks`)
     clipped: str | None = None
@@ -90,6 +99,7 @@ class Summary:
             "band_ok": self.ok,
             "input_dependence": self.dependence,
             "input_nonlinearity": self.nonlinearity,
+            "start_memory": self.memory if self.memory is None or math.isfinite(self.memory) else "inf",
             "clipped_on": self.clipped,
             "complexity": self.complexity,
             "seeds": {str(k): (v if math.isfinite(v) else None) for k, v in self.seeds.items()},
@@ -244,6 +254,7 @@ def summarize(results: list[Any]) -> Summary | None:
     deps = [r.dependence for r in fits if r.dependence is not None]
     curved = [r.nonlinearity for r in fits if getattr(r, "nonlinearity", None) is not None]
     sizes = [r.complexity for r in fits if r.complexity is not None]
+    memories = [r.memory for r in chosen if getattr(r, "memory", None) is not None]
     failure = next((failed_split(r.checks) for r in chosen if failed_split(r.checks)), None)
     if failure is None and not ok:
         failure = next((failed_split(r.checks) for r in fits if failed_split(r.checks)), None)
@@ -271,6 +282,7 @@ def summarize(results: list[Any]) -> Summary | None:
         blocks_on=blocks_on,
         continued=continued,
         nonlinearity=float(np.median(curved)) if curved else None,
+        memory=float(np.median(memories)) if memories else None,
         clipped=next((r.checks["clipped"] for r in chosen if r.checks.get("clipped")), None),
     )
 
@@ -283,15 +295,17 @@ class Choice:
     cautious: list[str] = field(default_factory=list)  # why the tie was widened
 
 
-def _size(s: Summary) -> float:
+def model_size(s: Summary) -> float:
     """A candidate's size for "the simpler one" (unknown: the largest)."""
     return s.complexity if s.complexity is not None else math.inf
 
 
-def _set_aside(eligible: list[str], summaries: dict[str, Summary], flawed, best: float) -> list[str]:
-    """The candidates of ``eligible`` (best first) with the flaw ``flawed(summary)``, when one without it
-    validates within :data:`ABOUT_AS_WELL` of the score ``best``; [] otherwise (the flawed stay)."""
-    if not any(not flawed(summaries[k]) and summaries[k].score <= ABOUT_AS_WELL * best for k in eligible):
+def _set_aside(eligible: list[str], summaries: dict[str, Summary], flawed, best: float, sound=None) -> list[str]:
+    """The candidates of ``eligible`` (best first) with the flaw ``flawed(summary)``, when one shown to be
+    without it (``sound(summary)``; default: not flawed) validates within :data:`ABOUT_AS_WELL` of the score
+    ``best``; [] otherwise (the flawed stay)."""
+    sound = sound or (lambda s: not flawed(s))
+    if not any(sound(summaries[k]) and summaries[k].score <= ABOUT_AS_WELL * best for k in eligible):
         return []
     return [k for k in eligible if flawed(summaries[k])]
 
@@ -364,6 +378,27 @@ def choose(
     if clipped:
         eligible = [k for k in eligible if k not in clipped]
         best = summaries[eligible[0]].score
+    # the test inputs leave the training range: a model that remembers where its run started (a second attractor,
+    # often at its output clip, or a mode that never settles) is set aside when one that forgets its start validates
+    # about as well
+    if excursion > EXTRAPOLATION and remembers(summaries[eligible[0]].memory):
+        aside = _set_aside(eligible, summaries, lambda s: remembers(s.memory), best, lambda s: forgets(s.memory))
+        for k in aside:
+            out.verdicts[k] = (
+                "set aside: its free run remembers the outputs it started from, while a model that forgets them "
+                "validates about as well and the test inputs leave the training range"
+            )
+        if aside:
+            out.notes.append(
+                f"{labels[eligible[0]]} validated best, but its free run remembers the outputs it started from "
+                f"(runs started at the bottom and the top of the training output range stay "
+                f"{summaries[eligible[0]].memory:.3g} output standard deviations apart from its own to the end: a "
+                "second attractor, which an input beyond the training range can push the run into, or a mode that "
+                "never settles); the test inputs leave the training range, so a model that forgets its start and "
+                f"validates within {100 * (ABOUT_AS_WELL - 1):.0f} % of it is preferred"
+            )
+            eligible = [k for k in eligible if k not in aside]
+            best = summaries[eligible[0]].score
     # the validation can itself say whether it resolves a gain when its only doubts are its size (a short
     # cross-validation: compared fold by fold) or a gain over the linear reference too small to trust at
     # once; not when the models will extrapolate, nor across recordings at other operating points
@@ -394,8 +429,8 @@ def choose(
             if diff is not None and diff[0] > RESOLVED * diff[1]:
                 resolved.add(k)
         close = [k for k in close if k not in resolved]
-    simplest = min(close, key=lambda k: (_size(summaries[k]), summaries[k].score, k))
-    if simplest == top and any(_size(summaries[k]) < _size(summaries[top]) for k in resolved):
+    simplest = min(close, key=lambda k: (model_size(summaries[k]), summaries[k].score, k))
+    if simplest == top and any(model_size(summaries[k]) < model_size(summaries[top]) for k in resolved):
         out.notes.append(
             f"{'; '.join(out.cautious)}, but {labels[top]} validates better than the simpler candidates {by} "
             f"(by more than {RESOLVED:g} standard errors of the difference), and is kept"

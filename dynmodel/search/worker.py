@@ -48,6 +48,9 @@ class Task(Variant):
     envelope: dict[str, Any] | None = None
     #: fit with this preprocessing (a warm start from a fitted model's values needs its scaling), not the view's
     preprocessor: Any = None
+    #: measure the start memory (:func:`.checks.start_memory`: three free runs per recording), which the search
+    #: reads only when the test inputs leave the training range
+    memory: bool = False
 
 
 @dataclass
@@ -58,8 +61,9 @@ class TaskResult(PointResult):
     when the view has none); None when the run diverged there or the fit failed. ``checks``: the band
     checks per split (:func:`.checks.band_checks`). ``dependence``: input dependence on the view's
     validation split; ``nonlinearity``: how far from affine in its input the run is there
-    (:func:`dynmodel.usefulness.input_nonlinearity`). ``complexity``: the fitted model's size. ``proposals``: diagnose tasks' moves as
-    ``{"cause", "summary", "patch"}``. ``reference``: reference tasks' figures.
+    (:func:`dynmodel.usefulness.input_nonlinearity`). ``memory``: how far its free run remembers the outputs
+    it started from (:func:`.checks.start_memory`). ``complexity``: the fitted model's size. ``proposals``:
+    diagnose tasks' moves as ``{"cause", "summary", "patch"}``. ``reference``: reference tasks' figures.
     ``moments``: sums over the view's validation samples that let folds be pooled into one score (``n``, per
     output ``sse``, ``sum``, ``sumsq`` of the measured output)."""
 
@@ -69,6 +73,7 @@ class TaskResult(PointResult):
     checks: dict[str, Any] = field(default_factory=dict)
     dependence: float | None = None
     nonlinearity: float | None = None
+    memory: float | None = None
     complexity: float | None = None
     proposals: list[dict[str, Any]] = field(default_factory=list)
     reference: dict[str, Any] | None = None
@@ -84,6 +89,7 @@ class TaskResult(PointResult):
             checks=self.checks,
             dependence=self.dependence,
             nonlinearity=self.nonlinearity,
+            memory=self.memory,
             complexity=self.complexity,
         )
         if self.proposals:
@@ -225,7 +231,7 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any, continued: Any = No
 def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
     from .. import engine, protocol
     from ..usefulness import input_dependence, input_nonlinearity
-    from .checks import affine, band_checks, complexity
+    from .checks import affine, band_checks, complexity, start_memory, usual_runs
     from .select import moment_score
 
     v = view(ds, task.layout)
@@ -256,11 +262,16 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
         result.nonlinearity = None if bad else input_nonlinearity(model, v, runs=runs, held=held)
     except (ValueError, FloatingPointError):
         result.nonlinearity = None
-    result.checks = band_checks(model, ds, task.envelope, affine=affine(result.nonlinearity))
+    runs_from_start = usual_runs(model, ds)  # every recording's run, read by the band check and the start memory
+    result.checks = band_checks(model, ds, task.envelope, affine=affine(result.nonlinearity), runs=runs_from_start)
     try:
         result.dependence = None if bad else input_dependence(model, v, runs=runs, held=held)
     except (ValueError, FloatingPointError):
         result.dependence = None
+    try:
+        result.memory = None if bad or not task.memory else start_memory(model, ds, runs_from_start)
+    except (ValueError, FloatingPointError):
+        result.memory = None
     result.complexity = complexity(model)
     info = getattr(model.family, "selection_", None)
     if isinstance(info, dict):

@@ -17,7 +17,8 @@ import numpy as np
 
 from dynmodel.reliability.system import DrivenSystem, InputDomain
 
-from .embedding import INPUT, Embedding
+from .embedding import INPUT, Embedding, factor_lists
+from .kernels import model_gradient, monomials
 
 #: the state box without a training output range: standard-scaled outputs mostly lie within +-2
 DEFAULT_BOX = 2.0
@@ -51,6 +52,10 @@ class NarxSystem(DrivenSystem):
         self.exponents = np.asarray(exponents, dtype=np.int64)
         self.term_output = np.asarray(term_output, dtype=np.int64)
         self.weights = np.asarray(weights, dtype=np.float64)
+        # the compiled kernels' sparse form of the terms, and the weights as a (terms, outputs) matrix
+        self._factors = factor_lists(self.exponents)
+        self._weight_matrix = np.zeros((len(self.weights), n_outputs))
+        self._weight_matrix[np.arange(len(self.weights)), self.term_output] = self.weights
         self.clip_lo, self.clip_hi = (np.asarray(c, dtype=np.float64) for c in clip)
         self.state_dim = n_outputs * self.L
         self.rest_state = np.zeros(self.state_dim)
@@ -110,14 +115,12 @@ class NarxSystem(DrivenSystem):
         return R
 
     def _outputs(self, R: np.ndarray) -> np.ndarray:
-        """(replicas, n_out): the polynomial of every output before the clip."""
-        acc = np.zeros((R.shape[0], self.n_out))
+        """(replicas, n_out): the polynomial of every output before the clip (the monomials of every replica by
+        the compiled kernel, then one product with the weights)."""
+        mons = np.empty((R.shape[0], len(self.weights)))
+        monomials(np.ascontiguousarray(R), *self._factors, mons)
         with np.errstate(over="ignore", invalid="ignore"):
-            for e, k, w in zip(self.exponents, self.term_output, self.weights):
-                used = np.flatnonzero(e)
-                mon = np.prod(R[:, used] ** e[used], axis=1) if len(used) else np.ones(R.shape[0])
-                acc[:, k] += w * mon
-        return acc
+            return mons @ self._weight_matrix
 
     def _shifted(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
         new = np.empty_like(X)
@@ -131,22 +134,23 @@ class NarxSystem(DrivenSystem):
         y = np.clip(self._outputs(self._regressors(X, V)), self.clip_lo, self.clip_hi)
         return self._shifted(X, y)
 
+    def _state_gradient(self, R: np.ndarray) -> np.ndarray:
+        """G[r, k, m] = d acc_k / d X_m for every replica (only fed-back regressors depend on the state), by the
+        compiled model gradient."""
+        G = np.zeros((R.shape[0], self.n_out, self.state_dim))
+        ptr, reg, pw = self._factors
+        D = model_gradient(
+            np.ascontiguousarray(R), ptr, reg, pw, self.term_output, self.weights, self.n_out, self.fed_back
+        )
+        for r in np.flatnonzero(self.fed_back):
+            G[:, :, self.column[r]] += D[:, :, r]
+        return G
+
     def tangent(self, X: np.ndarray, V: np.ndarray, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         R = self._regressors(X, V)
         acc = self._outputs(R)
         y = np.clip(acc, self.clip_lo, self.clip_hi)
-        # G[r, k, m] = d acc_k / d X_m (only fed-back regressors depend on the state)
-        G = np.zeros((X.shape[0], self.n_out, self.state_dim))
-        with np.errstate(over="ignore", invalid="ignore"):
-            for e, k, w in zip(self.exponents, self.term_output, self.weights):
-                for r in np.flatnonzero(e):
-                    if not self.fed_back[r]:
-                        continue
-                    others = [q for q in np.flatnonzero(e) if q != r]
-                    d = e[r] * R[:, r] ** (e[r] - 1) if e[r] > 1 else np.ones(R.shape[0])
-                    for q in others:
-                        d = d * R[:, q] ** e[q]
-                    G[:, k, self.column[r]] += w * d
+        G = self._state_gradient(R)
         held = (acc < self.clip_lo) | (acc > self.clip_hi)  # the clip's derivative is zero there
         G[held] = 0.0
         dE = np.empty_like(E)
