@@ -770,7 +770,11 @@ def test_when_every_finalist_fails_its_free_run_the_next_structure_in_line_is_fi
     best least-squares model (degree 3, lags up to 6, 113 terms) validates at 0.03 % clipped as it runs, but
     leaves the band in free run on its training data and its free-running estimation ends at 35 000 %
     validation NMSE; the other degrees' finalists lie 20x behind and were never fitted. The next structures
-    in the search's order are fitted until one stays in its band."""
+    in the search's order are fitted until one stays in its band. Which one does depends on the machine's
+    arithmetic: the last step of the free-running estimation's ramp (thesis 6.3.2) of the degree-3 model on lags
+    up to 5 stays in its band with OpenBLAS's AVX2 kernels (0.022 % validation, 0.017 % on the continuation)
+    and leaves it with its AVX-512 kernels, where the model on lags up to 4 is kept (0.031 % validation, 0.15 %
+    on the continuation); both are bounded here, the failing finalist is not."""
     from scipy import signal
 
     rng = np.random.default_rng(1)
@@ -783,11 +787,13 @@ def test_when_every_finalist_fails_its_free_run_the_next_structure_in_line_is_fi
     m = Narx().fit(u[:n], y_train)
     finalists = m.selection_["finalists"]
     assert finalists[0]["validation_nmse"] is None  # the first finalist fails after its fit
-    assert any(f.get("next_in_line") for f in finalists)
-    assert m.model_.metrics["validation"]["nmse"] < 0.1
+    kept = [f for f in finalists if f.get("next_in_line") and f["validation_nmse"] is not None]
+    assert len(kept) == 1 and (kept[0]["lags"], kept[0]["degree"]) == (m.selection_["lags"], m.selection_["degree"])
+    assert kept[0]["validation_nmse"] == pytest.approx(m.model_.metrics["validation"]["nmse"])
+    assert m.model_.metrics["validation"]["nmse"] < 0.05
     w = m.warmup
     pred = m.predict(u[n : n + 3000], y_tune=y[n : n + w])[:, 0]
-    assert 100 * np.mean((pred[w:] - y[n + w : n + 3000]) ** 2) / np.var(y[n + w : n + 3000]) < 0.1
+    assert 100 * np.mean((pred[w:] - y[n + w : n + 3000]) ** 2) / np.var(y[n + w : n + 3000]) < 0.3
 
 
 def test_the_free_run_stop_keeps_an_input_term_that_one_step_validation_drops():
