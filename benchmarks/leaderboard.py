@@ -4,6 +4,7 @@
     python benchmarks/leaderboard.py --no-peer          # without SysIdentPy
     python benchmarks/leaderboard.py --readme           # also rewrite the table in README.md (between its markers)
     python benchmarks/leaderboard.py --data DIR         # the benchmarks' files under DIR/<benchmark folder>
+    python benchmarks/leaderboard.py --readme --keep narx peer   # refit the auto specs only, keep the rest
 
 Every spec of ``specs/benchmarks`` is fitted with ``dynmodel.fit`` exactly as ``dynmodel fit SPEC`` would
 (the benchmark source reproduces the splits, windows and units of nonlinear-benchmarks 1.0.1; the
@@ -19,7 +20,10 @@ scored on the same samples. It is optional (``pip install sysidentpy``); without
 
 The table is written to docs/leaderboard.md; ``--readme`` replaces the lines between
 ``<!-- leaderboard:begin -->`` and ``<!-- leaderboard:end -->`` in README.md. Fit times are wall time
-on the machine that ran it. Prints figures; asserts nothing.
+on the machine that ran it. ``--keep`` takes the named columns (``narx``, ``auto``, ``peer``) and their
+specs' notes as they stand in the last table written (docs/leaderboard.md) instead of fitting them again: the
+auto specs' search takes minutes per benchmark, and a machine without SysIdentPy keeps its measured column.
+Prints figures; asserts nothing.
 """
 
 from __future__ import annotations
@@ -180,6 +184,34 @@ def _advanced(u: np.ndarray) -> np.ndarray:
     return np.concatenate([u[1:], u[-1:]])
 
 
+#: --keep's column names -> the table's headers
+HEADERS = {"narx": "dynmodel narx spec", "auto": "dynmodel auto", "peer": "SysIdentPy FROLS, same split"}
+
+
+def kept_cells(path: Path, columns: list[str]) -> tuple[dict[tuple[str, str, str], str], dict[str, str]]:
+    """From the last table written to ``path``: {(column, benchmark title, test label): cell} for ``columns``, and
+    {spec file: its note} (the line after the table, one note per spec, ``; `` between them)."""
+    if not path.exists():
+        raise SystemExit(f"--keep: {path} does not exist; run without --keep first")
+    lines = path.read_text().splitlines()
+    rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in lines if line.startswith("| ")]
+    if not rows:
+        raise SystemExit(f"--keep: {path} holds no table")
+    head, body = rows[0], rows[1:]
+    cells: dict[tuple[str, str, str], str] = {}
+    for column in columns:
+        if HEADERS[column] not in head:
+            raise SystemExit(f"--keep {column}: the table in {path} has no column {HEADERS[column]!r}")
+        j = head.index(HEADERS[column])
+        cells.update({(column, row[0], row[1]): row[j] for row in body if len(row) == len(head)})
+    notes: dict[str, str] = {}
+    for line in lines:
+        if line.startswith("`specs/"):
+            for note in line.split("; "):
+                notes[note.split("`")[1]] = note
+    return cells, notes
+
+
 def table(benchmarks: list[Benchmark], with_peer: bool) -> str:
     head = ["benchmark", "test set", "dynmodel narx spec", "dynmodel auto"]
     head += ["SysIdentPy FROLS, same split"] if with_peer else []
@@ -203,12 +235,29 @@ def main() -> None:
     ap.add_argument("--no-peer", action="store_true", help="do not run SysIdentPy")
     ap.add_argument("--readme", action="store_true", help="rewrite the leaderboard table in README.md")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "leaderboard.md", help="Markdown file to write")
+    ap.add_argument(
+        "--keep",
+        nargs="+",
+        choices=sorted(HEADERS),
+        default=[],
+        help="take these columns from the last table written (--out) instead of fitting them again",
+    )
     args = ap.parse_args()
+    kept, kept_notes = kept_cells(args.out, args.keep) if args.keep else ({}, {})
+    with_peer = not args.no_peer or "peer" in args.keep
     notes = []
     for b in BENCHMARKS:
+        for column in args.keep:
+            b.rows[column] = {
+                k: kept[(column, b.title, label)] for k, label in b.tests.items() if (column, b.title, label) in kept
+            }
         for variant in VARIANTS:
             path = SPECS / f"{b.name}-{variant}.yaml"
             if not path.exists():
+                continue
+            if variant in args.keep:
+                note = kept_notes.get(str(path.relative_to(ROOT)))
+                notes += [note] if note else []
                 continue
             try:
                 rmse, seconds, spec, ds, model = run_spec(path, args.data)
@@ -223,7 +272,7 @@ def main() -> None:
                 + ", ".join(f"{k} {_fmt(rmse.get(k))}" for k in b.tests),
                 flush=True,
             )
-            if variant == "narx" and not args.no_peer:
+            if variant == "narx" and not args.no_peer and "peer" not in args.keep:
                 t0 = time.perf_counter()
                 got = peer(spec, ds, model)
                 if isinstance(got, str):
@@ -231,7 +280,7 @@ def main() -> None:
                 else:
                     b.rows["peer"] = {k: _fmt(got.get(k)) for k in b.tests}
                 print(f"  SysIdentPy ({time.perf_counter() - t0:.0f} s): {b.rows['peer']}", flush=True)
-    text = table(BENCHMARKS, not args.no_peer)
+    text = table(BENCHMARKS, with_peer)
     body = (
         "Test RMSE of the free run, in each benchmark's units, with the protocol of nonlinear-benchmarks 1.0.1 "
         "(Bouc-Wen: its benchmark document, every sample scored from the input alone); configurations chosen on "
