@@ -495,6 +495,43 @@ def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):
     assert moved and "final" in moved[0]["levels"] and moved[0]["data"] == {"delay_lines": [3]}
 
 
+def test_the_moves_extend_the_model_the_choice_keeps_not_one_it_set_aside(tmp_path, monkeypatch):
+    """When the choice sets the best validated model aside (here: forced onto the second one, as a model that
+    remembers its start or ignores its input is set aside), the diagnosis and its proposals extend the model the
+    choice keeps."""
+    import dynmodel.search.worker as search_worker
+    from dynmodel.search.run import Search
+
+    diagnose, decide = search_worker._diagnose, Search.decide
+    diagnosed: list[str] = []
+    set_aside: list[str] = []
+
+    def with_a_proposal(task, spec, ds, result):
+        diagnosed.append(task.key)
+        diagnose(task, spec, ds, result)
+        result.proposals = [
+            *result.proposals,
+            {"cause": "test-delay", "summary": "a delay line of u", "patch": {"data": {"delay_lines": [3]}}},
+        ]
+
+    def second_best(self):
+        key, choice, level = decide(self)
+        ranked = [k for k in self.ranking("final") if self._usable(k, "final") and "test-delay" not in k]
+        if len(ranked) > 1 and key == ranked[0]:
+            set_aside.append(key)
+            return ranked[1], choice, "final"
+        return key, choice, level
+
+    monkeypatch.setattr(search_worker, "_diagnose", with_a_proposal)
+    monkeypatch.setattr(Search, "decide", second_best)
+    _data(tmp_path)
+    model, _ = _fit(_raw(families=["narx"], budget=30), tmp_path)
+    moved = [c for c in model.search["candidates"] if c["origin"].endswith(": test-delay")]
+    assert set_aside and moved and diagnosed
+    leader = moved[0]["origin"].removeprefix("move from ").removesuffix(": test-delay")
+    assert leader != set_aside[0] and diagnosed[0].endswith(leader)
+
+
 def test_the_result_is_the_same_with_one_and_two_workers(tmp_path):
     _data(tmp_path)
     one, _ = _fit(_raw(families=["narx", "esn"]), tmp_path, workers=1)

@@ -12,8 +12,8 @@ Stages, each with members fixed before it starts (see :mod:`.plan` for the budge
    already was a final one is not repeated); when the test inputs leave the training range and those that
    validate about as well as the best all remember their start, up to :data:`FORGETTING` more, the smallest first
    (:meth:`Search._stage_forgetting`);
-4. ``moves``: ``dynmodel diagnose``'s detectors on the leader, and the extensions they propose (the
-   residual says what is missing: extend, refit, keep what validates);
+4. ``moves``: ``dynmodel diagnose``'s detectors on the leader (the model the choice keeps so far), and the
+   extensions they propose (the residual says what is missing: extend, refit, keep what validates);
 
 then the choice (:mod:`.select`) on the final layout, and the winner's model: the fit already made on
 the full layout, or (cross-validation) a fit on the spec's own training and validation splits, which the
@@ -909,7 +909,12 @@ class Search:
             ranked = [k for k in self.ranking("final") if self._usable(k, "final")]
             if not ranked or self.interrupted:
                 return
-            leader = self.entries[ranked[0]]
+            # the leader is the model the choice keeps so far, which may set the best validated one aside (it
+            # remembers its start, ignores its input, or a simpler one ties): extending a model set aside gives
+            # candidates set aside for the same reason
+            chosen, _, level = self.decide()
+            leading = chosen if chosen in ranked and level == "final" else ranked[0]
+            leader = self.entries[leading]
             seed = leader.summaries["final"].median_seed or int(self.spec.seed)
             raw = self.raw_for(leader.cand, seed, False)
             # the detectors refit the leader's spec (a held-out refit with more terms, a reference model)
@@ -940,8 +945,8 @@ class Search:
             if not taken:
                 return
             self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks])
-            if self.ranking("final")[:1] == ranked[:1]:
-                return  # no move beat the leader
+            if self.decide()[0] == leading:
+                return  # no move is chosen over the leader
 
     def _refit_work(self, leader: Entry) -> float:
         """Planned work of the model's fits after the search, which the moves leave room for: on a holdout none
