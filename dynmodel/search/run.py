@@ -47,7 +47,7 @@ from ..spec import IN_MEMORY
 from .checks import affine, failed_split, forgets, linear_band, remembers
 from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, REFERENCE_WORKERS, TASK_OVERHEAD, Budget, Group
-from .select import ABOUT_AS_WELL, EXTRAPOLATION, POOR, Choice, Summary, choose, model_size, summarize
+from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, model_size, sound_within, summarize
 from .space import SIGNED, Candidate, Found, SearchContext, candidates_of, estimated_work
 from .views import (
     MIN_BLOCK,
@@ -643,11 +643,7 @@ class Search:
         if not ranked:
             return []
         best = self.entries[ranked[0]].summaries["screen"].score
-        out = ranked[:SURVIVORS] + [
-            k
-            for k in ranked[SURVIVORS:]
-            if self.entries[k].summaries["screen"].score <= SURVIVOR_FACTOR * max(best, 1e-12)
-        ]
+        out = ranked[:SURVIVORS] + self._near_best(ranked[SURVIVORS:], best)
         again = [
             k
             for k in self.ranking("screen")
@@ -656,6 +652,16 @@ class Search:
         for k in again:
             self.entries[k].origin += "; fitted in full although its screening fit left the output band"
         return sorted(out + again, key=lambda k: (self.entries[k].summaries["screen"].score, k))
+
+    def _near_best(self, ranked: list[str], best: float | None = None) -> list[str]:
+        """The keys of ``ranked`` (by screening score) within :data:`SURVIVOR_FACTOR` of the screening score
+        ``best`` (default: the first one's)."""
+        if not ranked:
+            return []
+        if best is None:
+            best = self.entries[ranked[0]].summaries["screen"].score
+        limit = SURVIVOR_FACTOR * max(best, 1e-12)
+        return [k for k in ranked if self.entries[k].summaries["screen"].score <= limit]
 
     # ------------------------------------------------------------------ stages
     def _add(self, cand: Candidate, origin: str) -> Entry | None:
@@ -826,23 +832,14 @@ class Search:
         final = [k for k in self.ranking("final") if self._usable(k, "final")]
         if not final:
             return
-        leader = self.entries[final[0]].summaries["final"]
-        if not remembers(leader.memory):
+        fitted = {k: self.entries[k].summaries["final"] for k in final}
+        leader = fitted[final[0]]
+        if not remembers(leader.memory) or sound_within(final, fitted, lambda s: forgets(s.memory), leader.score):
             return
-        for k in final:
-            s = self.entries[k].summaries["final"]
-            if s.score <= ABOUT_AS_WELL * leader.score and forgets(s.memory):
-                return
         screened = [k for k in self.ranking("screen") if self._usable(k, "screen")]
         if not screened:
             return
-        best = self.entries[screened[0]].summaries["screen"].score
-        pool = [
-            k
-            for k in screened
-            if "final" not in self.entries[k].summaries
-            and self.entries[k].summaries["screen"].score <= SURVIVOR_FACTOR * max(best, 1e-12)
-        ]
+        pool = [k for k in self._near_best(screened) if "final" not in self.entries[k].summaries]
         smallest = sorted(pool, key=lambda k: (model_size(self.entries[k].summaries["screen"]), k))[:FORGETTING]
         for k in smallest:
             self.entries[k].origin += (

@@ -300,12 +300,17 @@ def model_size(s: Summary) -> float:
     return s.complexity if s.complexity is not None else math.inf
 
 
+def sound_within(keys: list[str], summaries: dict[str, Summary], sound, best: float) -> bool:
+    """Does a candidate of ``keys`` with ``sound(summary)`` validate within :data:`ABOUT_AS_WELL` of the score
+    ``best``?"""
+    return any(sound(summaries[k]) and summaries[k].score <= ABOUT_AS_WELL * best for k in keys)
+
+
 def _set_aside(eligible: list[str], summaries: dict[str, Summary], flawed, best: float, sound=None) -> list[str]:
     """The candidates of ``eligible`` (best first) with the flaw ``flawed(summary)``, when one shown to be
     without it (``sound(summary)``; default: not flawed) validates within :data:`ABOUT_AS_WELL` of the score
-    ``best``; [] otherwise (the flawed stay)."""
-    sound = sound or (lambda s: not flawed(s))
-    if not any(sound(summaries[k]) and summaries[k].score <= ABOUT_AS_WELL * best for k in eligible):
+    ``best`` (:func:`sound_within`); [] otherwise (the flawed stay)."""
+    if not sound_within(eligible, summaries, sound or (lambda s: not flawed(s)), best):
         return []
     return [k for k in eligible if flawed(summaries[k])]
 
