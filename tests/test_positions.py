@@ -20,7 +20,7 @@ from dynmodel.search.params import AutoParams
 from dynmodel.search.run import context
 from dynmodel.search.space import Candidate, Found, SearchContext
 from dynmodel.spec import validate_spec
-from dynmodel_plugins.esn.search import neighbours
+from dynmodel_plugins.esn.search import neighbours, starting
 from dynmodel_plugins.narx import search as narx_search
 
 
@@ -51,6 +51,11 @@ def _ctx(positions: dict[str, float], data: dict | None = None) -> SearchContext
     return SearchContext(("x", "p"), ("f",), 1.0, 6000, 2000, data or {}, positions=positions)
 
 
+def _ctx1(positions: dict[str, float], data: dict | None = None) -> SearchContext:
+    """:func:`_ctx` with the position as the only input (a force from a position)."""
+    return replace(_ctx(positions, data), input_names=("x",))
+
+
 def _found(params: dict, data: dict | None = None) -> Found:
     return Found(Candidate("esn", params, "a network", data=data or {}), None, {}, 1.0)
 
@@ -68,6 +73,24 @@ def test_the_esn_offers_direction_features_of_its_positions_alone_and_with_delay
     lines = {"delay_lines": [1, 2, 5], "delay_form": "difference"}
     around = [c.data for c in neighbours(_ctx({"x": 0.01}), _found({}, lines)) if "derived_inputs" in c.data]
     assert around == [{**lines, "derived_inputs": derived}]
+
+
+def test_where_a_position_is_the_only_input_the_esn_also_starts_with_the_friction_network():
+    """Direction features and delay lines as a starting candidate, not only around a network that screened
+    well: on the sliding friction plant of thesis 6.3 no network without them did (benchmarks/auto_thesis.py)."""
+    derived = [{"direction": "x", "deadband": 0.01}, {"since_reversal": "x", "deadband": 0.01}]
+    [start] = [c for c in starting(_ctx1({"x": 0.01})) if c.data]
+    lines = {"delay_lines": [1, 2, 5, 10, 25, 50, 100], "delay_form": "difference"}
+    assert start.data == {**lines, "derived_inputs": derived} and start.params == {"size": 400}
+    # the same candidate as the one grown around the starting network of that size: fitted once
+    assert start.key in {c.key for c in neighbours(_ctx1({"x": 0.01}), _found({"size": 400}))}
+    # the spec's own delay lines stay, the features alone are added; no position, no such candidate
+    own = _ctx1({"x": 0.01}, {"delay_lines": [3, 30]})
+    assert [c.data for c in starting(own) if c.data] == [{"derived_inputs": derived}]
+    assert not any(c.data for c in starting(_ctx1({})))
+    assert not any(c.data for c in starting(_ctx1({"x": 0.01}, {"derived_inputs": [{"time": "linear"}]})))
+    # beside another input (a seal's pressure) it is only grown around a network that screened well
+    assert not any(c.data for c in starting(_ctx({"x": 0.01})))
 
 
 @pytest.mark.parametrize(

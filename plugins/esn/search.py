@@ -3,7 +3,9 @@
 Starting candidates: the default internal network (leaky elements, input to half of them, the output
 clipped), a twice larger one, and, where the protocol lets a run start from measured outputs, the
 external mode with a tune-in inside that window (fed back, it models smooth, well-excited outputs best,
-thesis 5.3.2, and can diverge elsewhere: the search's band checks catch that). Every candidate is random:
+thesis 5.3.2, and can diverge elsewhere: the search's band checks catch that), and, where the only input
+moves like a position, the larger network with its direction of motion, travel since the last reversal and
+input delay lines (the friction network of thesis 6.2-6.4). Every candidate is random:
 the search fits several seeds and judges the median. Neighbours of a good network: twice the elements,
 weaker and stronger input weights, slower leaky elements, a ridge readout over all states, the
 external mode for an internal network, and, for an internal network on data without delay lines, input
@@ -77,6 +79,7 @@ def starting(ctx: SearchContext) -> list[Candidate]:
         )
     big = 400 if ctx.n_train >= 2000 else 100
     out.append(_cand(ctx, f"internal, {big} leaky elements", {"size": big}, big))
+    out += _direction_starts(ctx, big)
     return out
 
 
@@ -117,10 +120,8 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
             external,
         )
     )
-    delays = [d for d in _DELAYS if d <= ctx.n_train // 50]
     # delay lines are offered to an internal network on data without any yet
-    if external or len(delays) < 2 or ctx.data.get("delay_lines") or found.candidate.data:
-        delays = []
+    delays = [] if external or found.candidate.data else _offered_delays(ctx)
     if delays:
         out.append(
             _cand(
@@ -147,6 +148,39 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
     return out
 
 
+def _offered_delays(ctx: SearchContext) -> list[int]:
+    """The input delay lines offered to an internal network: :data:`_DELAYS` up to a fiftieth of the training
+    samples, none when fewer than two fit or the spec has delay lines of its own."""
+    delays = [d for d in _DELAYS if d <= ctx.n_train // 50]
+    return [] if len(delays) < 2 or ctx.data.get("delay_lines") else delays
+
+
+def _with_directions(
+    ctx: SearchContext, p: dict[str, Any], size: int, data: dict[str, Any], derived: list, delays: list[int]
+) -> Candidate:
+    """An internal network ``p`` of ``size`` elements with the direction features ``derived`` added to its data
+    patch ``data``, and the input delay lines ``delays`` (none: [])."""
+    what = f"internal, {size} elements, direction and travel since the last reversal of {', '.join(ctx.positions)}"
+    what += " as inputs"
+    patch = {**data, "derived_inputs": derived}
+    if delays:
+        what += f", and input delay lines u(t) - u(t - d), d = {', '.join(map(str, delays))}"
+        patch.update(delay_lines=delays, delay_form="difference")
+    return _cand(ctx, what, p, size, data=patch)
+
+
+def _direction_starts(ctx: SearchContext, size: int) -> list[Candidate]:
+    """Where the only input moves like a position (a force from a position: the cross-prediction of thesis
+    6.2-6.4): a starting network of ``size`` elements with the direction features and the delay lines of
+    friction, which a network without them can validate too poorly to be grown into (the sliding friction plant
+    of 6.3: 34 % validation NMSE without, under 5 % with). Not beside other inputs (a seal's pressure): there it
+    took the place of a NARX candidate among the two the search grows, and never won."""
+    derived = ctx.direction_inputs()
+    if not derived or ctx.n_inputs != 1:
+        return []
+    return [_with_directions(ctx, {"size": size}, size, {}, derived, _offered_delays(ctx))]
+
+
 def _direction_neighbours(
     ctx: SearchContext, found: Found, p: dict[str, Any], size: int, delays: list[int]
 ) -> list[Candidate]:
@@ -158,12 +192,9 @@ def _direction_neighbours(
     derived = ctx.direction_inputs()
     if not derived or "derived_inputs" in data:
         return []
-    what = f"internal, {size} elements, direction and travel since the last reversal of {', '.join(ctx.positions)}"
-    out = [_cand(ctx, what + " as inputs", p, size, data={**data, "derived_inputs": derived})]
+    out = [_with_directions(ctx, p, size, data, derived, [])]
     if delays:
-        lines = f", and input delay lines u(t) - u(t - d), d = {', '.join(map(str, delays))}"
-        patch = {"delay_lines": delays, "delay_form": "difference", "derived_inputs": derived}
-        out.append(_cand(ctx, what + " as inputs" + lines, p, size, data=patch))
+        out.append(_with_directions(ctx, p, size, {}, derived, delays))
     return out
 
 
