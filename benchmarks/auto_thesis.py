@@ -21,12 +21,11 @@ from __future__ import annotations
 import argparse
 import copy
 import json
-import time
-import warnings
 from pathlib import Path
 from typing import Any
 
 import yaml
+from auto_small_data import fit_timed
 
 ROOT = Path(__file__).resolve().parents[1]
 SPECS = ROOT / "specs"
@@ -50,23 +49,6 @@ CASES = (
 EXPERT_DATA = ("delay_lines", "delay_form", "derived_inputs", "scaling")
 
 
-def fit_timed(raw: dict[str, Any], workers: int | None) -> tuple[Any, float]:
-    """The model of spec ``raw`` (relative paths against specs/) and its wall time, warnings silenced."""
-    from dynmodel import engine
-    from dynmodel.data import load_dataset
-    from dynmodel.search import search_options
-    from dynmodel.spec import validate_spec
-
-    spec = validate_spec(raw, raw["name"], SPECS)
-    t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ds = load_dataset(spec)
-        with search_options(workers=workers):
-            model, _ = engine.fit_dataset(spec, ds)
-    return model, time.perf_counter() - t0
-
-
 def auto_spec(raw: dict[str, Any], families: list[str] | None, budget: float | None) -> dict[str, Any]:
     """``raw`` with ``family: auto`` and without the expert's model, cost and data-side choices."""
     out = copy.deepcopy(raw)
@@ -87,7 +69,7 @@ def _test(model) -> float | None:
 
 
 def run_case(name: str, args) -> dict[str, Any]:
-    raw = yaml.safe_load((SPECS / f"{name}.yaml").read_text())
+    raw = yaml.safe_load((SPECS / f"{name}.yaml").read_text())  # generated data: no path to resolve
     raw.pop("output", None)
     expert, expert_s = fit_timed(copy.deepcopy(raw), 1)
     auto, auto_s = fit_timed(auto_spec(raw, args.families, args.budget), args.workers)
