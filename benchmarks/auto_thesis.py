@@ -68,6 +68,11 @@ def _test(model) -> float | None:
     return (model.metrics.get("test") or {}).get("nmse")
 
 
+def _fmt(value: float | None) -> str:
+    """A figure for the table; "-" where a model has no test figure."""
+    return "-" if value is None else f"{value:.4g}"
+
+
 def run_case(name: str, args) -> dict[str, Any]:
     raw = yaml.safe_load((SPECS / f"{name}.yaml").read_text())  # generated data: no path to resolve
     raw.pop("output", None)
@@ -100,8 +105,8 @@ def main() -> None:
         rows.append(row)
         ratio = row["auto"] / row["expert"] if row["auto"] is not None and row["expert"] else float("nan")
         print(
-            f"{name:26s} {row['expert']:10.4g} {row['auto']:10.4g} {ratio:8.2f} {row['expert_seconds']:8.0f} "
-            f"{row['auto_seconds']:7.0f}  {row['chosen']}",
+            f"{name:26s} {_fmt(row['expert']):>10s} {_fmt(row['auto']):>10s} {ratio:8.2f} "
+            f"{row['expert_seconds']:8.0f} {row['auto_seconds']:7.0f}  {row['chosen']}",
             flush=True,
         )
     if args.json:
