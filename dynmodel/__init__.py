@@ -27,10 +27,24 @@ from typing import TYPE_CHECKING, Any
 __version__ = "0.1.0"
 
 from .errors import DynmodelError  # noqa: E402
-from .spec import Spec, load_spec, validate_spec  # noqa: E402
 
 if TYPE_CHECKING:
     from .model import FittedModel
+    from .spec import Spec, load_spec, validate_spec
+
+#: loaded from :mod:`dynmodel.spec` on first use (:func:`__getattr__`)
+_FROM_SPEC = ("Spec", "load_spec", "validate_spec")
+
+
+def __getattr__(name: str) -> Any:
+    """``Spec``, ``load_spec`` and ``validate_spec``, loaded on first use: :mod:`dynmodel.spec` brings pydantic and
+    numpy (0.3 s), and ``import dynmodel`` is the command line's first step, where a Ctrl-C would otherwise end in a
+    traceback (:mod:`dynmodel.launch`)."""
+    if name in _FROM_SPEC:
+        from . import spec
+
+        return getattr(spec, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def fit(spec: Spec | dict | str | Path, data: Any = None, progress: Any = None) -> FittedModel:
@@ -43,6 +57,7 @@ def fit(spec: Spec | dict | str | Path, data: Any = None, progress: Any = None) 
     from collections.abc import Mapping
 
     from .errors import ParameterError
+    from .spec import Spec, load_spec, validate_spec
 
     if not isinstance(spec, (Spec, Mapping, str, Path)):
         raise ParameterError(

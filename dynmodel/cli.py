@@ -24,7 +24,7 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from . import __version__
-from .errors import EXIT_INTERNAL, EXIT_TERMINATED, Interrupted, Terminated, how_interrupted
+from .errors import EXIT_INTERNAL, EXIT_TERMINATED, Interrupted, Terminated, how_interrupted, interruption
 
 
 class _OneLineErrors(TyperGroup):
@@ -50,6 +50,14 @@ class _OneLineErrors(TyperGroup):
             sys.exit(1)
         sys.exit(rv if isinstance(rv, int) else 0)
 
+    def make_context(self, *args: Any, **kwargs: Any) -> Any:
+        with _interrupt_as_line():
+            return super().make_context(*args, **kwargs)
+
+    def invoke(self, ctx: Any) -> Any:
+        with _interrupt_as_line():
+            return super().invoke(ctx)
+
     def get_help_option(self, ctx: Any) -> Any:
         return _flag(super().get_help_option(ctx))
 
@@ -58,6 +66,18 @@ class _OneLineErrors(TyperGroup):
         if command is not None:
             _flag(command.get_help_option(ctx))
         return command
+
+
+@contextlib.contextmanager
+def _interrupt_as_line():
+    """A Ctrl-C (or SIGTERM) outside a command's own handling (:func:`handled`: while the command line is parsed, or
+    the command's modules load) ends with one line and its exit code too; typer would exit 130 silently."""
+    try:
+        yield
+    except KeyboardInterrupt as exc:
+        _, code = how_interrupted(exc)
+        print(f"error: {interruption(exc)}. Fix: rerun the command", file=sys.stderr)
+        raise typer.Exit(code) from None
 
 
 def _flag(option: Any) -> Any:

@@ -1,0 +1,5 @@
+"""``python -m dynmodel``: the ``dynmodel`` command (where the console script is not on the PATH)."""
+
+from .launch import main
+
+main()
