@@ -1330,10 +1330,10 @@ def test_a_refit_cut_by_the_safety_limit_keeps_the_fold_model_that_trained_on_th
     if ctrl_c:  # pressed during the moves: the search goes on to fit the best so far
         final_model = search_run.Search._final_model
 
-        def after_ctrl_c(self, key, level):
+        def after_ctrl_c(self, key, level, **options):
             self.cancel.set()
             self.interrupted = self.interrupted or "interrupted (Ctrl-C)"
-            return final_model(self, key, level)
+            return final_model(self, key, level, **options)
 
         monkeypatch.setattr(search_run.Search, "_final_model", after_ctrl_c)
     real = search_run.run_specs

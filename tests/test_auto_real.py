@@ -65,6 +65,21 @@ def test_after_a_cross_validation_the_model_kept_fits_its_data_as_the_folds_did(
     assert auto.metrics["test"]["nmse"] < 1000
 
 
+@needs_seals
+def test_when_every_candidate_leaves_the_band_the_best_is_kept_as_the_note_says():
+    """The first 500 samples of the PK seal: the pressure rises from 0 to 5 bar, the validation and test inputs go
+    172 and 181 % beyond the training range, and every candidate's free run leaves the output band somewhere.
+    The choice keeps the best on validation anyway and says so; its final fit left the band too, and the search
+    then failed ("found no usable model: ... kept the best on validation anyway"). It is now the model, and the
+    evaluation shows how poor it is."""
+    bench = _small_data()
+    data = bench.first_samples(bench.CASES["pk-5bar"], 500)
+    auto, _ = bench.fit_timed({"name": "pk500", "data": data, "model": {"family": "auto"}, "seed": 0}, None)
+    assert any("kept the best on validation anyway" in n for n in auto.search["notes"])
+    assert auto.search["winner"] is not None
+    assert auto.metrics["test"]["nmse"] > 1000
+
+
 SILVERBOX = SHARED_DATA / "silverbox"
 
 

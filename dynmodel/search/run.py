@@ -1048,8 +1048,11 @@ class Search:
         level = levels[choice.key] if choice.key else ("final" if "final" in levels.values() else "screen")
         return choice.key, choice, level
 
-    def _final_model(self, key: str, level: str):
-        """The winner's FittedModel on the spec's own layout (re-evaluated by the caller). Validated on a
+    def _final_model(self, key: str, level: str, anyway: bool = False):
+        """The winner's FittedModel on the spec's own layout (re-evaluated by the caller). ``anyway``: every
+        candidate left the output band somewhere and this one is kept anyway (:func:`.select.choose`), so its final
+        fit is too, whatever its band check (the evaluation reports it; before, the search then failed with "kept
+        the best on validation anyway" in its message and no model). Validated on a
         holdout, the fit validated is the model. Otherwise it is fitted again on the whole training split,
         unless the safety limit is reached before or during that fit: a fit already made is kept (the screening
         fit, or the fold model that trained on the most samples), so that the search ends near its limit (the
@@ -1092,7 +1095,7 @@ class Search:
         r: TaskResult = results[0]  # type: ignore[assignment]
         if self.linear_band:
             r.checks = linear_band(r.checks)
-        if not cancel_set and not r.checks.get("ok", False):
+        if not cancel_set and not anyway and not r.checks.get("ok", False):
             e.verdict = f"rejected after its final fit: {failed_split(r.checks)}"
             s.failure = "failed its final fit's band check"
             return None
@@ -1334,7 +1337,7 @@ class Search:
                 break
             tried.add(key)
             try:
-                model = self._final_model(key, level)
+                model = self._final_model(key, level, anyway=choice is not None and choice.anyway)
             except KeyboardInterrupt as exc:
                 self.interrupted = (
                     f"{interruption(exc)} while the best candidate so far ({self.entries[key].label}) was fitted "

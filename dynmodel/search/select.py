@@ -293,6 +293,8 @@ class Choice:
     notes: list[str] = field(default_factory=list)
     verdicts: dict[str, str] = field(default_factory=dict)  # key -> why not chosen (or "chosen")
     cautious: list[str] = field(default_factory=list)  # why the tie was widened
+    #: every candidate left the output band somewhere: the best on validation is kept anyway (its final fit too)
+    anyway: bool = False
 
 
 def model_size(s: Summary) -> float:
@@ -349,6 +351,7 @@ def choose(
             out.notes.append("no candidate gave a usable model")
             return out
         eligible = finite[:1]
+        out.anyway = True
         out.notes.append(
             "every candidate leaves the output band on some input (it diverges or extrapolates beyond plausible "
             f"outputs); kept the best on validation anyway: {labels[eligible[0]]}"
