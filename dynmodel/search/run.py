@@ -1501,7 +1501,7 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
     else:
         which = (
             "the chosen candidate (fitted on the spec's split, or as validated with "
-            f"{'the last block held out' if mode != 'recordings' else 'the recording left out whose fit trained on the most'}, "
+            f"{'the last block held out' if mode != 'recordings' else 'the recording left out whose fit trained on the most samples'}, "
             "when that fits those samples more than twice as well)"
             if mode in ("folds", "recordings", "phase")
             else "the chosen candidate"
