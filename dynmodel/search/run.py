@@ -99,8 +99,9 @@ LINEAR_FIT = 10.0
 REFIT_WORSE = 1.10
 #: after a cross-validation, the winner fitted on the spec's own split gives way to its fit validated with the last
 #: block held out when that fit's free run fits every training and validation sample more than this factor better
-#: (:meth:`Search._against_folds`; small recordings, both layouts: 2.4 and 2.5 x, better on the test; 56 x on a seal
-#: whose validation split sits at another force level; near ties, 1.03 - 1.7 x, went either way on the test)
+#: (:meth:`Search._against_folds`; of eight small recordings where it acted, five tested better, one the same, two
+#: worse: docs/auto.md; 56 x on a seal whose validation split sits at another force level; near ties, 1.03 - 1.7 x,
+#: went either way on the test)
 FOLD_BETTER = 2.0
 #: rounds of diagnose's moves, and moves measured per round
 MOVE_ROUNDS = 2
