@@ -24,7 +24,7 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from . import __version__
-from .errors import EXIT_INTERNAL, EXIT_TERMINATED, Interrupted, Terminated, how_interrupted, interruption
+from .errors import EXIT_INTERNAL, EXIT_TERMINATED, Interrupted, Terminated, how_interrupted, interruption_line
 
 
 class _OneLineErrors(TyperGroup):
@@ -75,9 +75,8 @@ def _interrupt_as_line():
     try:
         yield
     except KeyboardInterrupt as exc:
-        _, code = how_interrupted(exc)
-        print(f"error: {interruption(exc)}. Fix: rerun the command", file=sys.stderr)
-        raise typer.Exit(code) from None
+        print(interruption_line(exc), file=sys.stderr)
+        raise typer.Exit(how_interrupted(exc)[1]) from None
 
 
 def _flag(option: Any) -> Any:

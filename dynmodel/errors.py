@@ -93,6 +93,11 @@ def interruption(exc: BaseException | None) -> str:
     return f"{'terminated' if how == 'SIGTERM' else 'interrupted'} ({how})"
 
 
+def interruption_line(exc: BaseException | None) -> str:
+    """The one line a command stopped outside its own handling ends with (while it loads or parses its line)."""
+    return f"error: {interruption(exc)}. Fix: rerun the command"
+
+
 class ModelWarning(UserWarning):
     """A model fitted with the Python API that is of little use (worse than the training mean, ignoring its
     input, not carrying over to the test) or whose free run diverged: the line ``dynmodel fit`` prints

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 
-from .errors import how_interrupted, interruption
+from .errors import how_interrupted, interruption_line
 
 
 def main() -> None:
@@ -19,5 +19,5 @@ def main() -> None:
 
         run()  # a command's own handling catches what comes later (dynmodel.cli.handled)
     except KeyboardInterrupt as exc:
-        print(f"error: {interruption(exc)}. Fix: rerun the command", file=sys.stderr)
+        print(interruption_line(exc), file=sys.stderr)
         raise SystemExit(how_interrupted(exc)[1]) from None

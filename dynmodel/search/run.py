@@ -103,6 +103,8 @@ REFIT_WORSE = 1.10
 #: worse: docs/auto.md; 56 x on a seal whose validation split sits at another force level; near ties, 1.03 - 1.7 x,
 #: went either way on the test)
 FOLD_BETTER = 2.0
+#: the modes whose candidates are validated on folds, phases or recordings left out, not on the spec's own split
+CROSS_VALIDATED = ("folds", "recordings", "phase")
 #: rounds of diagnose's moves, and moves measured per round
 MOVE_ROUNDS = 2
 MOVES = 4
@@ -681,8 +683,7 @@ class Search:
         e = self.entries[key]
         s = e.summaries[level]
         fitted = None
-        results = sorted(e.results_at(level), key=lambda r: r.key)
-        pick = next((r for r in results if r.seed == s.median_seed and r.key in self.kept), None)
+        pick = next(iter(self._kept_fits(e, level)), None)
         if pick is not None:
             try:
                 model = self.kept[pick.key].to_model()
@@ -1113,14 +1114,9 @@ class Search:
         split sits at another force level, the ridge factor chosen there (607) gave a constant output: 104 % NMSE
         on those samples against the fold's fit's 1.9 % (test: 62 474 -> 242 %). Keeping whichever fits better
         was tried and not kept: near ties went either way on the test (docs/auto.md)."""
-        if self.mode not in ("folds", "recordings", "phase"):
+        if self.mode not in CROSS_VALIDATED:
             return model
-        s = e.summaries[level]
-        fits = [
-            r
-            for r in e.results_at(level)
-            if r.seed == s.median_seed and r.key in self.kept and r.checks.get("ok", False)
-        ]
+        fits = [r for r in self._kept_fits(e, level) if r.checks.get("ok", False)]
         if not fits:
             return model
         pick = min(fits, key=lambda r: self._held_last(r, True))
@@ -1271,8 +1267,7 @@ class Search:
         when there is one; with a note when the safety limit (or, ``last``, the missing validation split) made it
         stand in for the fit on the spec's own layout. None when no fitted model was kept (the next candidate is
         tried)."""
-        s = e.summaries[level]
-        fits = [r for r in e.results_at(level) if r.seed == s.median_seed and r.key in self.kept]
+        fits = self._kept_fits(e, level)
         if not fits:
             return None
 
@@ -1289,7 +1284,7 @@ class Search:
                 "training split it would have nothing to choose its size or training length on (add a validation "
                 f"split, e.g. split: {_with_validation(self.spec)}, to fit it on more data)"
             )
-        if past_limit and (level == "screen" or self.mode in ("recordings", "folds", "phase")):
+        if past_limit and (level == "screen" or self.mode in CROSS_VALIDATED):
             how = (
                 f"as screened ({layout.label}, its screening variant)"
                 if level == "screen" and not self._screen_is_final(e.cand)
@@ -1300,6 +1295,11 @@ class Search:
                 "search ends near its safety limit; a larger budget fits it in full"
             )
         return self.kept[pick.key].to_model()
+
+    def _kept_fits(self, e: Entry, level: str) -> list[TaskResult]:
+        """The fits of ``e`` at ``level`` whose model was kept, of its median seed, by task key."""
+        seed = e.summaries[level].median_seed
+        return sorted((r for r in e.results_at(level) if r.seed == seed and r.key in self.kept), key=lambda r: r.key)
 
     def _held_last(self, r: TaskResult, last: bool) -> tuple[int, str]:
         """The order of fits in which the one kept comes first: the one that trained on the most samples (a
@@ -1491,22 +1491,25 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
             f"ranking: free-run NMSE on the validation split ({ctx.n_validation} scored samples); candidates are "
             f"screened on {n} training samples first, the best refitted on all {ctx.n_train}"
         )
+    held = (
+        "the recording left out whose fit trained on the most samples"
+        if mode == "recordings"
+        else "the last block held out"
+    )
     if keeps_a_fold(mode, ds):
-        kept = "the last block held out" if mode == "folds" else "the recording left out whose fit trained on the most"
         lines.append(
             "final model: there is no validation split, so the chosen candidate is fitted again on the whole "
             "training split with its choices made on validation frozen, where its family can; otherwise it is "
-            f"kept as fitted with {kept} (a fit on the whole training split would have nothing to choose its size "
+            f"kept as fitted with {held} (a fit on the whole training split would have nothing to choose its size "
             f"on; add a validation split, e.g. split: {_with_validation(spec)}, to fit it on more data)"
         )
     else:
-        which = (
-            "the chosen candidate (fitted on the spec's split, or as validated with "
-            f"{'the last block held out' if mode != 'recordings' else 'the recording left out whose fit trained on the most samples'}, "
-            "when that fits those samples more than twice as well)"
-            if mode in ("folds", "recordings", "phase")
-            else "the chosen candidate"
-        )
+        which = "the chosen candidate"
+        if mode in CROSS_VALIDATED:
+            which += (
+                f" (fitted on the spec's split, or as validated with {held}, when that fits those samples more than "
+                f"{FOLD_BETTER:g} x better)"
+            )
         lines.append(
             f"final model: {which} is fitted again on the training and validation samples together, "
             "with its choices made on validation frozen (a structure, a factor), where its family can"
