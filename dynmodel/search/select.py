@@ -8,7 +8,8 @@ unlucky one cannot sink it). The seed whose score is that median gives the model
 The **choice** (:func:`choose`), in order:
 
 1. a candidate whose free run leaves the output band on any split's *input* (:mod:`.checks`, widened with the
-   input's excursion when the system is about linear; for a random
+   input's excursion when the system is about linear), or strays from the output when started from measured
+   outputs inside the training and validation data (:func:`.checks.measured_starts`; for a random
    family, on at least half of its seeds; for the blocked cross-validation, with half of its fold models or
    more) is rejected, whatever its validation error (the model that is kept is checked on
    its own as well);

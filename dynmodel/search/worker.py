@@ -231,7 +231,7 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any, continued: Any = No
 def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
     from .. import engine, protocol
     from ..usefulness import input_dependence, input_nonlinearity
-    from .checks import affine, band_checks, complexity, start_memory, usual_runs
+    from .checks import affine, band_checks, complexity, measured_starts, start_memory, usual_runs
     from .select import moment_score
 
     v = view(ds, task.layout)
@@ -264,6 +264,12 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
         result.nonlinearity = None
     runs_from_start = usual_runs(model, ds)  # every recording's run, read by the band check and the start memory
     result.checks = band_checks(model, ds, task.envelope, affine=affine(result.nonlinearity), runs=runs_from_start)
+    starts = None if bad else measured_starts(model, ds, runs_from_start)
+    if starts is not None:  # under the strict band and the linear-system one alike
+        for checks in (result.checks, result.checks.get("wide")):
+            if isinstance(checks, dict):
+                checks["starts"] = starts
+                checks["ok"] = checks["ok"] and starts["ok"]
     try:
         result.dependence = None if bad else input_dependence(model, v, runs=runs, held=held)
     except (ValueError, FloatingPointError):
