@@ -4,6 +4,8 @@ output [0, 1] (so the band is [-0.49, 1.49] and the outer band [-1, 2] where the
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from conftest import write_csv
@@ -223,6 +225,12 @@ def test_a_model_that_strays_from_measured_starts_inside_the_training_data_fails
     reads_none = _LatchesWhenStartedHigh()
     reads_none.warmup = 0
     assert checks.measured_starts(reads_none, ds, usual) is None
+    # outputs unknown (NaN) over the first 300 samples: no start reads them
+    gap = np.arange(ds.recordings[0].n)[:, None] < 300
+    gappy = replace(ds, recordings=[replace(ds.recordings[0], y=np.where(gap, np.nan, ds.recordings[0].y))])
+    fewer = checks.measured_starts(model, gappy, usual)
+    assert fewer is not None and 0 < fewer["starts"] < latched["starts"] and fewer["strayed"] >= 1
+    assert fewer["sample"] >= 300
 
 
 def test_an_external_network_whose_short_tune_in_leaves_it_in_another_basin_fails(tmp_path):
