@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from conftest import ROOT, make_spec, narx, narx_spec, write_csv
@@ -90,6 +92,29 @@ def test_save_load_predict_reproduces_the_in_memory_prediction(tmp_path, mode):
     assert loaded.metrics == m.metrics and loaded.spec == m.spec
     nmse = 100 * np.mean((after[200:, 0] - y[200:]) ** 2) / np.var(y[200:])
     assert nmse < 5.0  # a real model, not a constant
+
+
+def test_a_model_file_written_before_settle_still_runs_from_rest(tmp_path):
+    """``settle`` (external mode: the state where the first input and output, held, leave the network) is part of
+    every file written since; a file without it was run from rest (zeros) and still is, prediction for
+    prediction, while the same network settled predicts otherwise over its first samples."""
+    import h5py
+
+    m = _fit(narx_spec(mode="external", n=3000, test_n=500, transient=200, split={"train": 0.7, "validation": 0.3}))
+    assert m.family.params.settle == 200
+    u, y = narx(1500, 99)
+    path = dynmodel.save(m, tmp_path / "m.h5")
+    settled = dynmodel.load(path).predict(u, y_tune=y[: m.warmup])
+    np.testing.assert_array_equal(settled, m.predict(u, y_tune=y[: m.warmup]))
+    with h5py.File(path, "r+") as f:  # as written before the parameter existed
+        params = json.loads(f.attrs["family_params"])
+        del params["settle"]
+        f.attrs["family_params"] = json.dumps(params)
+    old = dynmodel.load(path)
+    assert old.family.params.settle == 0
+    m.family.params.settle = 0
+    np.testing.assert_array_equal(old.predict(u, y_tune=y[: m.warmup]), m.predict(u, y_tune=y[: m.warmup]))
+    assert not np.allclose(old.predict(u, y_tune=y[: m.warmup])[:40], settled[:40])
 
 
 def test_external_prediction_asks_for_tune_in_outputs():

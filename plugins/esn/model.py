@@ -22,7 +22,7 @@ from dynmodel.moments import Moments
 
 from .network import Network, build_network, largest_singular_value, spectral_radius
 from .params import EsnParams, Readout, Refinement, Scale, Weights
-from .streaming import RunBuffers, free_run_moments, free_runs, output_of, teacher_forced_moments
+from .streaming import RunBuffers, free_run_moments, free_runs, output_of, settled_state, teacher_forced_moments
 
 #: raised when the teacher-forced drive meets a missing (test) output
 _NEEDS_OUTPUTS = (
@@ -75,6 +75,7 @@ class EchoStateNetwork(Family):
         relaxation: float | tuple[float, float] = (0.0, 0.99),
         relaxation_gain: bool = True,
         tune_in: int = 20,
+        settle: int = 200,
         bounds: float | None = 0.5,
         readout: Readout | dict[str, Any] | None = None,
         refinement: Refinement | dict[str, Any] | None = None,
@@ -225,7 +226,13 @@ class EchoStateNetwork(Family):
             hi=hi,
             clip_lo=clip_lo,
             clip_hi=clip_hi,
+            settle=self._settle,
         )
+
+    @property
+    def _settle(self) -> int:
+        """Samples the external mode's runs settle for before the tune-in (``settle``; 0 for networks without it)."""
+        return int(getattr(self.params, "settle", 0))
 
     def _free_run_error(self, data: TrainingData, buffers: RunBuffers) -> float:
         """Mean NMSE (fraction) over outputs of the pure free run on validation (else training) rows."""
@@ -306,10 +313,13 @@ class EchoStateNetwork(Family):
             else np.ascontiguousarray(y_measured[:tune], dtype=np.float64)
         )
         lo, hi = bounds if bounds is not None else (np.full(self.n_outputs_, -np.inf), np.full(self.n_outputs_, np.inf))
+        Y = Y.reshape(-1, self.n_outputs_)
+        # settled: the state where the first input and measured output, held, leave the network (not zero)
+        start = settled_state(self.network_, u[0], Y[0], self._settle) if len(Y) and len(u) else None
         _, y, _, div = kernels.free_run_clipped(
             *self.network_.kernel_args(),
             u,
-            Y.reshape(-1, self.n_outputs_),
+            Y,
             tune,
             0.0,
             self.W_,
@@ -318,7 +328,7 @@ class EchoStateNetwork(Family):
             self.y_rest_,
             lo,
             hi,
-            np.zeros(self.network_.size),
+            np.zeros(self.network_.size) if start is None else start,
             False,
             *self._clip,
         )
@@ -390,6 +400,8 @@ class EchoStateNetwork(Family):
 
     @classmethod
     def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray], attrs: dict[str, Any]):
+        if cls.name == "esn":  # written before ``settle``: its runs started from rest, and still do
+            params = {"settle": 0, **params}
         self = cls(**params)
         m = int(attrs["size"])
         C = sp.csr_matrix((arrays["C_data"], arrays["C_indices"], arrays["C_indptr"]), shape=(m, m))
@@ -440,6 +452,8 @@ class EchoStateNetwork(Family):
             info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(*self._clip)]
         if self.external:
             info["tune_in"] = self.params.tune_in
+            if self._settle:
+                info["settled before the tune-in (samples)"] = self._settle
             if len(self.refinement_) > 1:
                 info["refinement iterations"] = len(self.refinement_) - 1
         return info

@@ -131,6 +131,14 @@ class EsnParams(FamilyParams):
         description="external mode: measured output samples fed back before running free (default 20: inside the "
         "state-initialisation windows of the standard benchmarks, 20 - 50 samples)",
     )
+    settle: int = Field(
+        200,
+        ge=0,
+        description="external mode: before the tune-in, the network is driven this many samples by the first input "
+        "and the first measured output held, from rest, so that its state starts where those values hold it rather "
+        "than at zero (0: from zero, as in the thesis). A 20-sample tune-in from zero left some networks on a "
+        "second attractor from measured starts inside their own training data (docs/families.md)",
+    )
     bounds: Optional[float] = Field(
         0.5,
         ge=0,

@@ -38,6 +38,19 @@ def feature_width(net: Network, n_drive: int, direct: bool) -> int:
     return net.size + (n_drive if direct else 0)
 
 
+def settled_state(net: Network, u0: np.ndarray, y0: np.ndarray, steps: int) -> np.ndarray:
+    """The state after ``steps`` samples of the drive ``[u0, y0]`` held (the first input and, fed back, the first
+    measured output), from rest: where a network tuned in on a system at rest at those values starts (the
+    external mode's ``settle``). Rest (zeros) for ``steps`` = 0 or an unknown first output."""
+    x = np.zeros(net.size)
+    v = np.concatenate([np.ravel(u0), np.ravel(y0)]).astype(np.float64)
+    if steps <= 0 or not np.isfinite(v).all():
+        return x
+    F = np.empty((steps, net.size))
+    kernels.drive_chunk(*net.kernel_args(), np.ascontiguousarray(np.broadcast_to(v, (steps, v.size))), x, False, F)
+    return x
+
+
 def teacher_forced_moments(
     net: Network, data: TrainingData, drives: list[np.ndarray], direct: bool, splits: tuple[str, ...]
 ) -> dict[str, Moments]:
@@ -76,11 +89,13 @@ def free_run_moments(
     hi: np.ndarray,
     clip_lo: np.ndarray,
     clip_hi: np.ndarray,
+    settle: int = 0,
     into: dict[str, Moments] | None = None,
 ) -> dict[str, Moments] | None:
     """Moments of the readout rows ``[x_t, u_t, f_t (direct)], y_t`` of the external-mode run with
     feedback ``f_t`` (``mix``: share of the measured output, :func:`dynmodel.kernels.free_run_clipped`;
-    the output clipped to [clip_lo, clip_hi] is the one fed back); None when a run leaves [lo, hi]. ``into``: moments to reset and reuse (see
+    the output clipped to [clip_lo, clip_hi] is the one fed back); None when a run leaves [lo, hi]. Each run
+    starts from :func:`settled_state` (``settle`` samples). ``into``: moments to reset and reuse (see
     :func:`dynmodel.moments.accumulate`)."""
     args = net.kernel_args()
     m, n_in, q = net.size, data.n_inputs, data.n_outputs
@@ -92,7 +107,7 @@ def free_run_moments(
     def produce(k: int, start: int, stop: int) -> np.ndarray:
         s, yhat, fb = data.series[k], buffers.yhat[k], buffers.fb[k]
         if start == 0:
-            x[:] = 0.0
+            x[:] = settled_state(net, s.u[0], s.y[0], settle if tune_in > 0 else 0)
         F = buffer[: stop - start]
         u, y = np.ascontiguousarray(s.u), np.ascontiguousarray(s.y)
         div = kernels.free_run_span(
@@ -144,14 +159,16 @@ def free_runs(
     hi: np.ndarray,
     clip_lo: np.ndarray,
     clip_hi: np.ndarray,
+    settle: int = 0,
 ) -> bool:
     """External-mode runs of every series, outputs (clipped to [clip_lo, clip_hi], as fed back) in
-    ``buffers.yhat``. False when a run leaves [lo, hi] (its later outputs are NaN)."""
+    ``buffers.yhat``, each from :func:`settled_state` (``settle`` samples). False when a run leaves [lo, hi] (its
+    later outputs are NaN)."""
     args = net.kernel_args()
     x = np.zeros(net.size)
     no_states = np.empty((0, net.size))
     for s, yhat, fb in zip(data.series, buffers.yhat, buffers.fb):
-        x[:] = 0.0
+        x[:] = settled_state(net, s.u[0], s.y[0], settle if tune_in > 0 else 0)
         u, y = np.ascontiguousarray(s.u), np.ascontiguousarray(s.y)
         div = kernels.free_run_span(
             *args,
