@@ -395,10 +395,12 @@ def measured_starts(model: FittedModel, ds: Dataset, runs: UsualRuns) -> dict[st
     from a measured tune-in is; a run *strays* when its NMSE over its second half exceeds :data:`STRAYS_AT` and
     :data:`STRAY_RATIO` times that of the run from the recording's usual start (``runs``) over the same samples.
     The recording's own start may fall in the right basin where other states do not: an external echo state
-    network of 400 elements tuned in for 20 samples from a reservoir at rest validated at 0.03 % NMSE from the
-    validation's start, strayed (to 290 - 900 % NMSE) from 2 of 24 starts inside its training data, its refit on
-    every sample from 20 of 96, and scored 480 % on a test recording. ``{"ok", "starts", "strayed", "recording", "sample"}`` (the first start that strayed), or None
-    for a model that reads no measured output."""
+    network of 400 elements tuned in for 20 samples from a reservoir at zero (before ``settle``) validated at
+    0.03 % NMSE from the validation's start, strayed (to 290 - 900 % NMSE) from 2 of 24 starts inside its
+    training data, its refit on every sample from 20 of 96, and scored 480 % on a test recording.
+
+    ``{"ok", "starts", "strayed", "recording", "sample"}`` (where the first stray started), or None for a model
+    that reads no measured output or where no start has the samples it needs."""
     warm = model.warmup
     if not warm:
         return None
