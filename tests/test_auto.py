@@ -285,6 +285,94 @@ def test_a_candidate_whose_cheap_screening_variant_runs_away_is_fitted_in_full(t
     assert model.family.params.shrink == 0.0 and model.family.params.runaway is False
 
 
+class LatchingParams(FamilyParams):
+    latch: bool = Field(False, description="exact fit that latches onto a second level from high measured starts")
+
+
+class Latching(Family):
+    """A static affine map that reads one measured output (``warmup`` 1). ``latch``: fitted exactly, but a run
+    started from a measured output above the training output's upper quartile stays 5 ranges above (a second
+    attractor the recording's own start never reaches); otherwise the slope is shrunk by 10 % (validates worse,
+    tracks from every start)."""
+
+    name = "latching"
+    description = "test family for the runs from measured starts"
+    Params = LatchingParams
+    stochastic = False
+
+    def __init__(self, *, latch: bool = False) -> None:
+        super().__init__(latch=latch)
+
+    @property
+    def warmup(self) -> int:
+        return 1
+
+    def fit(self, data, cost="mse1", rng=None, progress=no_progress):
+        u = data.stack("train", [s.u for s in data.series])
+        y = data.targets("train")
+        coef, *_ = np.linalg.lstsq(np.column_stack([u, np.ones(len(u))]), y, rcond=None)
+        self.W_, self.w0_ = coef[:-1] * (1.0 if self.params.latch else 0.9), coef[-1]
+        self.high_ = float(np.quantile(y, 0.75))
+        self.offset_ = float(5 * np.ptp(y))
+        return self
+
+    def simulate(self, u, y_measured=None, bounds=None):
+        y = np.asarray(u) @ self.W_ + self.w0_
+        if self.params.latch and y_measured is not None and len(y_measured) and y_measured[0, 0] > self.high_:
+            y = y + self.offset_
+        return Simulation(y)
+
+    def to_arrays(self):
+        return {"W": self.W_, "w0": self.w0_, "levels": np.array([self.high_, self.offset_])}, {}
+
+    @classmethod
+    def from_arrays(cls, params, arrays, attrs):
+        m = cls(**params)
+        m.W_, m.w0_ = np.asarray(arrays["W"]), np.asarray(arrays["w0"])
+        m.high_, m.offset_ = (float(v) for v in arrays["levels"])
+        return m
+
+    @classmethod
+    def search_space(cls, ctx, around=None):
+        if around is not None:
+            return []
+        return [
+            Candidate("latching", {"latch": True}, "exact, latches from high measured starts", work=0.01),
+            Candidate("latching", {"latch": False}, "shrunk slope, tracks", work=0.01),
+        ]
+
+
+def test_a_candidate_that_strays_from_measured_starts_inside_the_data_is_rejected(tmp_path, monkeypatch):
+    """The validation scores one start, the validation's; runs from measured outputs spread over the training
+    and validation data catch a model whose run from some of them settles elsewhere (every start the band check
+    and the validation make is low, so only those runs see it)."""
+    installed = registry.families()
+    monkeypatch.setattr(registry, "families", lambda: {**installed, "latching": Latching})
+    spec_model.cache_clear()
+    try:
+        rng = np.random.default_rng(3)
+        u = rng.uniform(-1, 1, 2000)
+        u[[0, 1399]] = -1.0  # the recording's first output and the one before the validation's start: low
+        ut = rng.uniform(-1, 1, 600)
+        ut[0] = -1.0  # the test window's
+        write_csv(tmp_path / "train.csv", {"u": u, "y": 2 * u + 0.01 * rng.standard_normal(2000)})
+        write_csv(tmp_path / "test.csv", {"u": ut, "y": 2 * ut})
+        model, _ = _fit(_raw(families=["latching"]), tmp_path)
+    finally:
+        monkeypatch.undo()
+        spec_model.cache_clear()
+    by = {c["params"]["latch"]: c for c in model.search["candidates"]}
+    latched = by[True]["levels"]["final"]
+    assert latched["score"] < by[False]["levels"]["final"]["score"] and latched["band_ok"] is False
+    assert by[True]["verdict"].startswith(
+        "rejected: strays from the measured output when started from measured outputs inside the training data"
+    )
+    starts = by[True]["checks"]["starts"]
+    assert not starts["ok"] and starts["strayed"] >= 3 and starts["starts"] == 24
+    assert by[False]["verdict"] == "chosen" and by[False]["checks"]["starts"]["strayed"] == 0
+    assert model.family.params.latch is False
+
+
 def test_fold_models_are_judged_like_seeds():
     """Blocked cross-validation: a configuration is rejected when half of its fold models or more leave the
     band; fewer may (a model trained on part of a short record). Recordings left out: every one must pass."""
