@@ -234,7 +234,9 @@ def test_streamed_clipped_free_run_equals_a_plain_loop(small_chunks):
         ]
         assert any((yl[31:] == clip[1]).any() and (yl[31:] == clip[0]).any() for _, yl, _ in loops)
         buffers = RunBuffers(data)
-        mom = free_run_moments(fam.network_, data, mix, True, ("train", "validation"), buffers, **run)
+        mom = free_run_moments(
+            fam.network_, data, mix, True, ("train", "validation"), buffers, **run, starts=fam._run_starts(data)
+        )
         assert mom is not None
         feats = []
         for k, ((X, yl, fl), s, yb, fbb) in enumerate(zip(loops, data.series, buffers.yhat, buffers.fb)):
@@ -250,7 +252,7 @@ def test_streamed_clipped_free_run_equals_a_plain_loop(small_chunks):
         )
     # the pure free run (mix 0): the refinement's runs and the model's simulate
     buffers = RunBuffers(data)
-    assert free_runs(fam.network_, data, 0.0, buffers, **run)
+    assert free_runs(fam.network_, data, 0.0, buffers, **run, starts=fam._run_starts(data))
     for s, yb in zip(data.series, buffers.yhat):
         _, yl, _ = _loop_free_run(fam.network_, s, 30, 0.0, fam.W_, fam.D_, fam.w0_, fam.y_rest_, *clip, settle=200)
         np.testing.assert_allclose(yb, yl, rtol=0, atol=1e-10)

@@ -245,13 +245,16 @@ def band_checks(
     envelope: dict[str, Any] | None = None,
     affine: bool = False,
     runs: UsualRuns | None = None,
+    starts: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Per split: ``{"ok": bool, "start": how runs started, "sample": first sample outside the band or None,
     "recording": its name}`` plus ``"ok"`` over all splits, and, where the linear reference's run (``envelope``:
     per split, its low and high per output) leaves the band, or the model is ``affine`` in its input (its band is
     :data:`AFFINE_BAND` wider), the same under the linear-system band as ``"wide"`` (see :func:`linear_band`).
     Runs every recording once (``runs``: those runs, :func:`usual_runs`, when already made), and again settled
-    where a run from rest of a model that starts from measured outputs left the band (see the module docstring)."""
+    where a run from rest of a model that starts from measured outputs left the band (see the module docstring).
+    ``starts``: the runs from measured starts (:func:`measured_starts`), kept as ``"starts"`` under both bands and
+    failing both when they stray."""
     lo, hi, width = band(ds)
     margin = BAND * (1.0 - EDGE) * width
     wider: dict[str, tuple[np.ndarray, np.ndarray]] = {}
@@ -291,6 +294,10 @@ def band_checks(
                     break
             target[split] = entry
             target["ok"] = target["ok"] and entry["ok"]
+    if starts is not None:
+        for target in (out, wide):
+            target["starts"] = starts
+            target["ok"] = target["ok"] and starts["ok"]
     if wider:
         # the first split whose run is cut flat at an output clip beyond the strict band (not a failure: the
         # choice prefers an unclipped candidate that validates about as well, :func:`.select.choose`)
@@ -370,7 +377,7 @@ def _start_spots(ds: Dataset, warm: int) -> list[tuple[int, int, int]]:
     pieces: list[tuple[int, int, int, int]] = []  # (recording, first start, last start, run length)
     for split in FIT_SPLITS:
         for rec, a, b in ds.ranges.get(split, []):
-            first = max(a, ds.transient if ds.transient_at != "segment" else a) + warm
+            first = (a if ds.transient_at == "segment" else max(a, ds.transient)) + warm
             length = min(START_RUN, b - first)
             if length < max(4 * warm, 50):
                 continue

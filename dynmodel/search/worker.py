@@ -263,13 +263,10 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
     except (ValueError, FloatingPointError):
         result.nonlinearity = None
     runs_from_start = usual_runs(model, ds)  # every recording's run: the band check, measured starts, start memory
-    result.checks = band_checks(model, ds, task.envelope, affine=affine(result.nonlinearity), runs=runs_from_start)
     starts = None if bad else measured_starts(model, ds, runs_from_start)
-    if starts is not None:  # under the strict band and the linear-system one alike
-        for checks in (result.checks, result.checks.get("wide")):
-            if isinstance(checks, dict):
-                checks["starts"] = starts
-                checks["ok"] = checks["ok"] and starts["ok"]
+    result.checks = band_checks(
+        model, ds, task.envelope, affine=affine(result.nonlinearity), runs=runs_from_start, starts=starts
+    )
     try:
         result.dependence = None if bad else input_dependence(model, v, runs=runs, held=held)
     except (ValueError, FloatingPointError):

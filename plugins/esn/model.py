@@ -226,18 +226,25 @@ class EchoStateNetwork(Family):
             hi=hi,
             clip_lo=clip_lo,
             clip_hi=clip_hi,
-            settle=self._settle,
         )
+
+    def _run_starts(self, data: TrainingData) -> list[np.ndarray] | None:
+        """Each series' settled start (:func:`.streaming.settled_state`) for the external-mode runs of a fit: the
+        network is fixed while its readout is refined, so they are computed once; None: every run from rest."""
+        if not self._settle or not self.params.tune_in:
+            return None
+        return [settled_state(self.network_, s.u[0], s.y[0], self._settle) for s in data.series]
 
     @property
     def _settle(self) -> int:
         """Samples the external mode's runs settle for before the tune-in (``settle``; 0 for networks without it)."""
         return int(getattr(self.params, "settle", 0))
 
-    def _free_run_error(self, data: TrainingData, buffers: RunBuffers) -> float:
-        """Mean NMSE (fraction) over outputs of the pure free run on validation (else training) rows."""
+    def _free_run_error(self, data: TrainingData, buffers: RunBuffers, starts: list[np.ndarray] | None) -> float:
+        """Mean NMSE (fraction) over outputs of the pure free run on validation (else training) rows, each run
+        from its series' state in ``starts``."""
         split = "validation" if data.has("validation") else "train"
-        if not free_runs(self.network_, data, 0.0, buffers, **self._run_args()):
+        if not free_runs(self.network_, data, 0.0, buffers, **self._run_args(), starts=starts):
             return np.inf
         pred = data.stack(split, buffers.yhat)
         target = data.targets(split)
@@ -251,9 +258,10 @@ class EchoStateNetwork(Family):
         over ``ramp`` iterations (error propagation, thesis 6.3.2)."""
         r = self.params.refinement
         buffers = RunBuffers(data)  # outputs of every run, reused
+        starts = self._run_starts(data)
         reused: dict[str, Moments] = {}
         best_vec = self._readout_vector()
-        best_err = self._free_run_error(data, buffers)
+        best_err = self._free_run_error(data, buffers, starts)
         unstable = not np.isfinite(best_err)
         self.refinement_ = [{"iteration": 0, "mix": 1.0 if unstable else 0.0, "validation_nmse": 100 * best_err}]
         mix = 1.0 if unstable else 0.0
@@ -269,6 +277,7 @@ class EchoStateNetwork(Family):
                 self._splits(data),
                 buffers,
                 **self._run_args(),
+                starts=starts,
                 into=reused or None,
             )
             if moments is None:  # the run diverged
@@ -279,7 +288,7 @@ class EchoStateNetwork(Family):
             current = self._readout_vector()
             self._set_readout(self._solve_readout(moments["train"], moments.get("validation")))
             self._set_readout_vector((1.0 - r.alpha) * current + r.alpha * self._readout_vector())
-            err = self._free_run_error(data, buffers)
+            err = self._free_run_error(data, buffers, starts)
             self.refinement_.append({"iteration": it, "mix": mix, "validation_nmse": 100 * err})
             progress("refine", it / r.max_iter, f"iteration {it}: free-run validation NMSE {100 * err:.4g} %")
             if err < best_err:
@@ -400,7 +409,7 @@ class EchoStateNetwork(Family):
 
     @classmethod
     def from_arrays(cls, params: dict[str, Any], arrays: dict[str, np.ndarray], attrs: dict[str, Any]):
-        if cls.name == "esn":  # written before ``settle``: its runs started from rest, and still do
+        if "settle" in cls.Params.model_fields:  # a file written before ``settle``: its runs started from rest
             params = {"settle": 0, **params}
         self = cls(**params)
         m = int(attrs["size"])

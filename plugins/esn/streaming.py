@@ -89,13 +89,13 @@ def free_run_moments(
     hi: np.ndarray,
     clip_lo: np.ndarray,
     clip_hi: np.ndarray,
-    settle: int = 0,
+    starts: list[np.ndarray] | None = None,
     into: dict[str, Moments] | None = None,
 ) -> dict[str, Moments] | None:
     """Moments of the readout rows ``[x_t, u_t, f_t (direct)], y_t`` of the external-mode run with
     feedback ``f_t`` (``mix``: share of the measured output, :func:`dynmodel.kernels.free_run_clipped`;
     the output clipped to [clip_lo, clip_hi] is the one fed back); None when a run leaves [lo, hi]. Each run
-    starts from :func:`settled_state` (``settle`` samples). ``into``: moments to reset and reuse (see
+    starts from its series' state in ``starts`` (:func:`settled_state`; None: from rest). ``into``: moments to reset and reuse (see
     :func:`dynmodel.moments.accumulate`)."""
     args = net.kernel_args()
     m, n_in, q = net.size, data.n_inputs, data.n_outputs
@@ -107,7 +107,7 @@ def free_run_moments(
     def produce(k: int, start: int, stop: int) -> np.ndarray:
         s, yhat, fb = data.series[k], buffers.yhat[k], buffers.fb[k]
         if start == 0:
-            x[:] = settled_state(net, s.u[0], s.y[0], settle if tune_in > 0 else 0)
+            x[:] = 0.0 if starts is None else starts[k]
         F = buffer[: stop - start]
         u, y = np.ascontiguousarray(s.u), np.ascontiguousarray(s.y)
         div = kernels.free_run_span(
@@ -159,16 +159,16 @@ def free_runs(
     hi: np.ndarray,
     clip_lo: np.ndarray,
     clip_hi: np.ndarray,
-    settle: int = 0,
+    starts: list[np.ndarray] | None = None,
 ) -> bool:
     """External-mode runs of every series, outputs (clipped to [clip_lo, clip_hi], as fed back) in
-    ``buffers.yhat``, each from :func:`settled_state` (``settle`` samples). False when a run leaves [lo, hi] (its
-    later outputs are NaN)."""
+    ``buffers.yhat``, each from its series' state in ``starts`` (:func:`settled_state`; None: from rest). False
+    when a run leaves [lo, hi] (its later outputs are NaN)."""
     args = net.kernel_args()
     x = np.zeros(net.size)
     no_states = np.empty((0, net.size))
-    for s, yhat, fb in zip(data.series, buffers.yhat, buffers.fb):
-        x[:] = settled_state(net, s.u[0], s.y[0], settle if tune_in > 0 else 0)
+    for k, (s, yhat, fb) in enumerate(zip(data.series, buffers.yhat, buffers.fb)):
+        x[:] = 0.0 if starts is None else starts[k]
         u, y = np.ascontiguousarray(s.u), np.ascontiguousarray(s.y)
         div = kernels.free_run_span(
             *args,
