@@ -27,6 +27,7 @@ from dynmodel.data import load_dataset
 from dynmodel.errors import SpecError
 from dynmodel.family import Family, FamilyParams, Simulation, no_progress
 from dynmodel.search import search_options
+from dynmodel.search.report import headline
 from dynmodel.search.select import Summary, choose
 from dynmodel.search.space import Candidate
 from dynmodel.search.views import Layout, possible_folds, possible_recording_folds, view
@@ -1454,11 +1455,12 @@ def test_a_refit_cut_by_the_safety_limit_keeps_the_fold_model_that_trained_on_th
     assert model.metrics["validation"]["nmse"] < 0.5
 
 
-def _operating_point(pressure: float, n: int, seed: int) -> dict[str, np.ndarray]:
+def _operating_point(pressure: float, n: int, seed: int, amplitude: float = 1.0) -> dict[str, np.ndarray]:
     """A recording at one operating condition: y_t = 0.8 y_(t-1) + 0.5 u_t + 2 p_t with p held near
-    ``pressure`` (the level 10 p comes from the pressure, as the seal's force does), small output noise."""
+    ``pressure`` (the level 10 p comes from the pressure, as the seal's force does), u white noise of std
+    ``amplitude``, small output noise."""
     rng = np.random.default_rng(seed)
-    u = rng.standard_normal(n)
+    u = amplitude * rng.standard_normal(n)
     p = pressure + 0.01 * rng.standard_normal(n)
     y = np.zeros(n)
     y[0] = 10.0 * pressure
@@ -1468,7 +1470,7 @@ def _operating_point(pressure: float, n: int, seed: int) -> dict[str, np.ndarray
 
 
 def test_recordings_at_other_operating_points_give_a_model_that_carries_over(tmp_path):
-    """Trained at 1, 3 and 7 (each left out in turn), tested at 5: the level each recording sits at comes
+    """Trained at 1, 3 and 7, tested at 5: the level each recording sits at comes
     from an input held constant within it. A model started from measured outputs can carry that level
     over instead of computing it, and an output clip at the others' range holds it below 7: every such
     candidate fails on the recordings left out. The linear output-error candidate started from rest and
@@ -1476,7 +1478,7 @@ def test_recordings_at_other_operating_points_give_a_model_that_carries_over(tmp
     NMSE on the pneumatic seal (docs/auto.md)."""
     for i, pressure in enumerate((1.0, 3.0, 7.0)):
         write_csv(tmp_path / f"run{i}.csv", _operating_point(pressure, 600, 20 + i))
-    write_csv(tmp_path / "test.csv", _operating_point(5.0, 600, 30))
+    write_csv(tmp_path / "test.csv", _operating_point(5.0, 600, 30, amplitude=0.5))  # u inside the training range
     raw = _raw(families=["narx"], budget=5)
     raw["data"] = {
         "path": [f"run{i}.csv" for i in range(3)],
@@ -1488,9 +1490,46 @@ def test_recordings_at_other_operating_points_give_a_model_that_carries_over(tmp
     }
     model, _ = _fit(raw, tmp_path)
     assert model.search["mode"] == "recordings"
+    # the test (5) lies inside the training range: validated on the recording between the others (3)
+    assert [lay["fold"] for lay in model.search["layouts"]["final"]] == [1]
+    assert "1 of 3 recordings left out in turn, those between the others" in headline(model.search)
     chosen = next(c for c in model.search["candidates"] if c["verdict"] == "chosen")
-    assert chosen["validation_nmse"] < 1.0, chosen  # pooled over the three recordings left out
+    assert chosen["validation_nmse"] < 1.0, chosen  # at 3, trained at 1 and 7
     assert model.metrics["test"]["nmse"] < 1.0  # at 5, an operating point it never saw
+
+
+def test_the_recordings_left_out_are_those_between_the_others_when_the_test_is_inside_the_training_range(tmp_path):
+    """Recordings at 1, 3 and 7 of an input held constant within each (a pressure): left out, the first and the
+    last ask a model to extrapolate to 200 % of the others' range beyond it, the middle one to interpolate. A
+    test at 5 asks the latter, so only the middle one is validated; a test at 9, or none, asks for every one.
+    On eight pneumatic seals tested at 5 bar (trained at 1, 3, 7) the edge recordings' errors, 100 - 1000x the
+    middle one's, set models that interpolate well aside for the simplest (docs/auto.md)."""
+    from dynmodel.search.run import validated_recordings
+    from dynmodel.search.views import interior_recordings
+
+    for i, pressure in enumerate((1.0, 3.0, 7.0)):
+        write_csv(tmp_path / f"run{i}.csv", _operating_point(pressure, 300, 20 + i))
+    for name, pressure in (("inside", 5.0), ("beyond", 9.0)):
+        write_csv(tmp_path / f"{name}.csv", _operating_point(pressure, 300, 30, amplitude=0.5))
+    data = {"path": [f"run{i}.csv" for i in range(3)], "input": ["u", "p"], "output": ["y"]}
+    data["split"] = {"train": 0.75, "validation": 0.25}
+
+    def dataset(test: str | None):
+        raw = {**_raw(families=["narx"], budget=1), "data": {**data, **({"test": {"path": test}} if test else {})}}
+        return load_dataset(validate_spec(raw, "<test>", tmp_path))
+
+    inside, beyond, untested = dataset("inside.csv"), dataset("beyond.csv"), dataset(None)
+    assert interior_recordings(inside) == [1]
+    assert validated_recordings(inside, 3) == (1,)
+    assert validated_recordings(beyond, 3) == () and validated_recordings(untested, 3) == ()
+    # realizations of one system, every one between the others: none singled out
+    (tmp_path / "same").mkdir()
+    _, same = _three_recordings(tmp_path / "same", budget=1)
+    assert interior_recordings(same) == [0, 1, 2]
+    # excitation levels: the smallest amplitude lies inside the others' value range, but not between their levels
+    for i, amplitude in enumerate((0.5, 1.0, 2.0)):
+        write_csv(tmp_path / f"run{i}.csv", _operating_point(3.0, 300, 20 + i, amplitude=amplitude))
+    assert interior_recordings(dataset("inside.csv")) == [1]
 
 
 def _s(score: float, size: float, ok: bool = True, dep: float = 0.5) -> Summary:

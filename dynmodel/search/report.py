@@ -23,7 +23,11 @@ def headline(record: dict[str, Any]) -> str:
     )
     how = {
         "folds": f"cross-validated in {record.get('folds')} blocks{first}",
-        "recordings": f"each of {record.get('folds')} recordings left out in turn",
+        "recordings": (
+            f"each of {record.get('folds')} recordings left out in turn"
+            if validated in (0, record.get("folds"))
+            else f"{validated} of {record.get('folds')} recordings left out in turn, those between the others"
+        ),
         "tail": f"the last 1/{record.get('folds')} of the training held out",
         "phase": f"each 1/{record.get('folds')} of the excitation's period held out in turn",
     }.get(str(record.get("mode")), "validation split")

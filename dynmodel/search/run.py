@@ -52,6 +52,7 @@ from .space import SIGNED, Candidate, Found, SearchContext, candidates_of, estim
 from .views import (
     MIN_BLOCK,
     Layout,
+    interior_recordings,
     phase_fold,
     possible_folds,
     possible_recording_folds,
@@ -237,6 +238,8 @@ class Ranking:
     short: str | None
     period: int = 0
     repeated: dict[str, Any] | None = None
+    #: mode 'recordings': the recordings validated when not every one is (:func:`validated_recordings`)
+    inside: tuple[int, ...] = ()
 
     @property
     def blocked(self) -> bool:
@@ -252,13 +255,26 @@ class Ranking:
             return self.short
         if self.mode == "recordings":
             return (
-                f"the {self.folds} training recordings were each left out in turn (a validation split taken from "
-                "the same recordings cannot tell how a model carries over to another recording)"
+                f"validated on {self.left_out()}; a validation split taken from the same recordings cannot tell how "
+                "a model carries over to another recording"
             )
         reasons = [self.short] if self.short and self.mode != "tail" else []
         if self.repeated is not None:
             reasons.append(REPEATED)
         return "; ".join(reasons) or None
+
+    def left_out(self) -> str:
+        """Mode 'recordings': which training recordings are left out in turn, in words."""
+        if not self.inside:
+            return f"each of the {self.folds} training recordings left out in turn"
+        which = ", ".join(str(i + 1) for i in self.inside)
+        one = len(self.inside) == 1
+        return (
+            f"{'recording' if one else 'recordings'} {which} of {self.folds} left out{'' if one else ' in turn'} "
+            f"({'the one' if one else 'those'} between the others' operating conditions, by each input's mean and "
+            "spread: the test inputs stay inside the training range, so the test asks a model to carry over "
+            "between operating conditions, not beyond them)"
+        )
 
     def repeat_caution(self) -> str | None:
         """The note on a hold-out that repeats the training input, or None."""
@@ -296,6 +312,7 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         short = phase_note(period, folds)
         n_train, n_val = n_train + n_val - (n_train + n_val) // folds, (n_train + n_val) // folds
     folds = {"recordings": left_out, "holdout": 0}.get(mode, folds)
+    inside = validated_recordings(ds, folds) if mode == "recordings" else ()
     data = dict(spec.resolved()["data"])
     pieces = [ds.recordings[rec].u[a:b] for rec, a, b in ds.ranges.get("train", [])]
     positions = _positions(pieces, ds.input_names)
@@ -316,7 +333,19 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         dead_times=_dead_times(ds),
         signed=_signed(pieces, ds.input_names, positions),
     )
-    return ctx, Ranking(mode, folds, short, period or 0, repeated)
+    return ctx, Ranking(mode, folds, short, period or 0, repeated, inside)
+
+
+def validated_recordings(ds: Dataset, folds: int) -> tuple[int, ...]:
+    """Recordings left out in turn: when every test input stays inside the training range, only the recordings
+    between the others' operating conditions (:func:`.views.interior_recordings`), so that the validation asks
+    what the test asks (a pressure between two others, not beyond them: a recording at the edge, left out, makes
+    every model extrapolate, and favours the simplest); () for every recording (no test set, a test input beyond
+    the range, or none or every recording between the others)."""
+    if not ds.ranges.get("test") or any(e["split"] == "test" for e in ds.input_excursions()):
+        return ()
+    inside = interior_recordings(ds)
+    return tuple(inside) if 0 < len(inside) < folds else ()
 
 
 def _positions(pieces: list[np.ndarray], names: list[str]) -> dict[str, float]:
@@ -412,7 +441,7 @@ class Search:
             self.final_layouts = [Layout("fold", fold=folds - 1, folds=folds)]
         elif folds:
             kind = "recording" if self.mode == "recordings" else "fold"
-            used = validated_folds(ds, folds) if self.mode == "folds" else list(range(folds))
+            used = validated_folds(ds, folds) if self.mode == "folds" else list(self.ranked_on.inside or range(folds))
             self.final_layouts = [Layout(kind, fold=i, folds=folds, period=self.ranked_on.period) for i in used]
         else:
             self.final_layouts = [Layout("full")]
@@ -1477,10 +1506,7 @@ def describe_plan(spec: Spec, ds: Dataset) -> list[str]:
             f"ranking: blocked cross-validation in {k} blocks of the training and validation samples ({short}){first}"
         )
     elif mode == "recordings":
-        lines.append(
-            f"ranking: free-run NMSE on each of the {k} training recordings in turn, "
-            "the model trained on the others (leave one recording out)"
-        )
+        lines.append(f"ranking: free-run NMSE on {ranking.left_out()}, the model trained on the others")
     elif mode == "tail":
         lines.append(f"ranking: {tail_note(k, planned=True)}")
     elif mode == "phase":

@@ -18,7 +18,9 @@ so a fit inside the search cannot read a test output: the search's checks on tes
   :data:`MIN_RECORDINGS` or more recordings (runs at other operating conditions: other pressures, loads,
   amplitudes). Fold ``i`` validates on all of recording ``i``'s training and validation samples, trained
   on the other recordings': how well a model carries over to a recording it has not seen, which is what
-  a test recording asks and a validation split taken from the same recordings cannot tell;
+  a test recording asks and a validation split taken from the same recordings cannot tell (the search leaves
+  out only those between the others' operating conditions, :func:`interior_recordings`, when the test inputs
+  stay inside the training range);
 * ``all``: every training and validation sample as training, no validation: the chosen configuration's refit
   (its choices made on validation frozen);
 * ``fold k of k`` alone: long data without a validation split (the spec's split is training only) are
@@ -43,6 +45,8 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ..data.dataset import Dataset, Recording, compact_ranges, last_samples, own_runs
 from ..data.repeats import repeats_training
 
@@ -51,6 +55,12 @@ FIT_SPLITS = ("train", "validation")
 MIN_BLOCK = 20
 #: leave one recording out when the fitting data hold at least this many recordings
 MIN_RECORDINGS = 3
+#: a recording left out is between the others' operating conditions when each input's mean goes beyond the others'
+#: means by at most this fraction of the input's standard deviation over every recording (a level held with noise
+#: moves its mean by a fraction of that noise) ...
+INSIDE_LEVEL = 0.25
+#: ... and its standard deviation beyond theirs by at most this fraction of the largest (:func:`interior_recordings`)
+INSIDE_SPREAD = 0.1
 
 
 @dataclass(frozen=True)
@@ -262,6 +272,29 @@ def possible_recording_folds(ds: Dataset, min_recordings: int = MIN_RECORDINGS) 
         if max(b - a for _, a, b in g) - ds.transient - window < MIN_BLOCK:
             return 0
     return len(groups)
+
+
+def interior_recordings(ds: Dataset) -> list[int]:
+    """The recordings (indices as in :func:`recording_fold`) at operating conditions between the others': for
+    every input, its mean and its standard deviation lie inside the range of the other recordings' means
+    (widened by :data:`INSIDE_LEVEL` x the input's standard deviation over every recording) and of their standard
+    deviations (widened by :data:`INSIDE_SPREAD` of their largest). Left out, such a recording asks a model to carry over
+    between operating conditions (a pressure between two others, an amplitude between two others), not beyond
+    them; the recordings of one excitation repeated are every one inside."""
+    groups = _by_recording(ds)
+    inputs = [np.concatenate([ds.recordings[r].u[a:b] for r, a, b in g]) for g in groups]
+    means = np.array([np.nanmean(u, axis=0) for u in inputs])
+    stds = np.array([np.nanstd(u, axis=0) for u in inputs])
+    spread = np.nanstd(np.concatenate(inputs), axis=0)
+    inside = []
+    for i in range(len(groups)):
+        others = np.arange(len(groups)) != i
+        lo, hi = means[others].min(axis=0) - INSIDE_LEVEL * spread, means[others].max(axis=0) + INSIDE_LEVEL * spread
+        top = stds[others].max(axis=0)
+        slo, shi = stds[others].min(axis=0) - INSIDE_SPREAD * top, top * (1.0 + INSIDE_SPREAD)
+        if np.all((means[i] >= lo) & (means[i] <= hi) & (stds[i] >= slo) & (stds[i] <= shi)):
+            inside.append(i)
+    return inside
 
 
 def recording_fold(ds: Dataset, i: int) -> Dataset:
