@@ -28,7 +28,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from auto_small_data import DATA, fit_files, run_generated
+from auto_small_data import DATA, SEAL_COLUMNS, fit_files, run_generated
 
 DEFAULTS = ("narx", "esn", "arx")
 FOLDER = DATA / "pneumatic_seal_friction" / "friction"
@@ -59,20 +59,16 @@ CASES: dict[str, tuple[str, tuple[int, ...], int]] = {
 }
 
 
-def seal_data(seal: str, train: tuple[int, ...], test: int) -> dict[str, Any]:
-    """The data section: force from position and pressure at ``train`` bar, tested at ``test`` bar."""
+def seal_data(seal: str, train: tuple[int, ...], test: int, folder: Path = FOLDER) -> dict[str, Any]:
+    """The data section: force from position and pressure at ``train`` bar, tested at ``test`` bar (the files
+    ``<seal>_<pressure>bar.csv`` in ``folder``)."""
     return {
-        "path": [str(FOLDER / f"{seal}_{p}bar.csv") for p in train],
-        "header": False,
-        "columns": ["t_ms", "laser_v", "pressure_v", "force_v", "position", "pressure", "force"],
-        "time_column": "t_ms",
-        "time_unit": 0.001,
+        "path": [str(folder / f"{seal}_{p}bar.csv") for p in train],
+        **SEAL_COLUMNS,
         "resample": 0.01,
-        "input": ["position", "pressure"],
-        "output": ["force"],
         "split": {"train": 0.75, "validation": 0.25},
         "transient": 50,
-        "test": {"path": str(FOLDER / f"{seal}_{test}bar.csv")},
+        "test": {"path": str(folder / f"{seal}_{test}bar.csv")},
     }
 
 

@@ -47,17 +47,19 @@ DATA = ROOT.parent / "shared" / "data"
 SEALS = DATA / "pneumatic_seal_friction" / "friction"
 
 
+#: how a pneumatic seal file is read: force from piston position and chamber pressure (PROVENANCE.md there)
+SEAL_COLUMNS: dict[str, Any] = {
+    "header": False,
+    "columns": ["t_ms", "laser_v", "pressure_v", "force_v", "position", "pressure", "force"],
+    "time_column": "t_ms",
+    "time_unit": 0.001,
+    "input": ["position", "pressure"],
+    "output": ["force"],
+}
+
+
 def _seal(name: str) -> dict[str, Any]:
-    return {
-        "path": str(SEALS / f"{name}.csv"),
-        "header": False,
-        "columns": ["t_ms", "laser_v", "pressure_v", "force_v", "position", "pressure", "force"],
-        "time_column": "t_ms",
-        "time_unit": 0.001,
-        "resample": 0.02,
-        "input": ["position", "pressure"],
-        "output": ["force"],
-    }
+    return {"path": str(SEALS / f"{name}.csv"), **SEAL_COLUMNS, "resample": 0.02}
 
 
 CASES: dict[str, dict[str, Any]] = {

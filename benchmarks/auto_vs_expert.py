@@ -35,6 +35,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from auto_seals import seal_data
+
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"
 
@@ -168,28 +170,11 @@ def _gms_data() -> dict[str, Any]:
     }
 
 
-def _seal_data(train: tuple[int, ...], test: int, seal: str = "NAPN") -> dict[str, Any]:
-    folder = DATA / "pneumatic_seal_friction" / "friction"
-    return {
-        "path": [str(folder / f"{seal}_{p}bar.csv") for p in train],
-        "header": False,
-        "columns": ["t_ms", "laser_v", "pressure_v", "force_v", "position", "pressure", "force"],
-        "time_column": "t_ms",
-        "time_unit": 0.001,
-        "resample": 0.01,
-        "input": ["position", "pressure"],
-        "output": ["force"],
-        "split": {"train": 0.75, "validation": 0.25},
-        "transient": 50,
-        "test": {"path": str(folder / f"{seal}_{test}bar.csv")},
-    }
-
-
 def run_friction(name: str, args) -> list[dict[str, Any]]:
     """GMS (auto only: the target is absolute) and the seals (auto and every family's default)."""
-    cases = {"gms": _gms_data()} if name == "gms" else {"seal 1/3/7 -> 5 bar": _seal_data((1, 3, 7), 5)}
+    cases = {"gms": _gms_data()} if name == "gms" else {"seal 1/3/7 -> 5 bar": seal_data("NAPN", (1, 3, 7), 5)}
     if name == "seal":
-        cases["seal 1/3/5 -> 7 bar"] = _seal_data((1, 3, 5), 7)
+        cases["seal 1/3/5 -> 7 bar"] = seal_data("NAPN", (1, 3, 5), 7)
     out = []
     for label, data in cases.items():
         row: dict[str, Any] = {"case": label, "defaults": {}}

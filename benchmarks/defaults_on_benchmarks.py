@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from auto_seals import seal_data
 
 from dynmodel import engine
 from dynmodel.spec import validate_spec
@@ -233,24 +234,8 @@ def run_generated(kind: str, model_name: str, tmp: Path) -> dict:
         del split["test"]
         tests["split12k"] = split
     else:
-        seal = DATA / "pneumatic_seal_friction" / "friction"
-        common = {
-            "header": False,
-            "columns": ["t_ms", "laser_v", "pressure_v", "force_v", "position", "pressure", "force"],
-            "time_column": "t_ms",
-            "time_unit": 0.001,
-            "resample": 0.01,
-            "input": ["position", "pressure"],
-            "output": ["force"],
-            "split": {"train": 0.75, "validation": 0.25},
-            "transient": 50,
-        }
         name = kind.partition("-")[2] or "NAPN"
-        inside = {**common, "path": [str(seal / f"{name}_{p}bar.csv") for p in (1, 3, 7)]}
-        inside["test"] = {"path": str(seal / f"{name}_5bar.csv")}
-        outside = {**common, "path": [str(seal / f"{name}_{p}bar.csv") for p in (1, 3, 5)]}
-        outside["test"] = {"path": str(seal / f"{name}_7bar.csv")}
-        tests = {"5bar": inside, "7bar": outside}
+        tests = {"5bar": seal_data(name, (1, 3, 7), 5), "7bar": seal_data(name, (1, 3, 5), 7)}
     out: dict = {"tests": {}}
     for test, data in tests.items():
         raw = {
