@@ -1514,14 +1514,21 @@ def test_the_recordings_left_out_are_those_between_the_others_when_the_test_is_i
     data = {"path": [f"run{i}.csv" for i in range(3)], "input": ["u", "p"], "output": ["y"]}
     data["split"] = {"train": 0.75, "validation": 0.25}
 
-    def dataset(test: str | None):
-        raw = {**_raw(families=["narx"], budget=1), "data": {**data, **({"test": {"path": test}} if test else {})}}
+    def dataset(test: str | list[dict[str, str]] | None):
+        tests = {} if test is None else {"test": test if isinstance(test, list) else {"path": test}}
+        raw = {**_raw(families=["narx"], budget=1), "data": {**data, **tests}}
         return load_dataset(validate_spec(raw, "<test>", tmp_path))
+
+    def validated(ds) -> tuple[int, ...]:
+        return validated_recordings(ds, 3, ds.input_excursions())
 
     inside, beyond, untested = dataset("inside.csv"), dataset("beyond.csv"), dataset(None)
     assert interior_recordings(inside) == [1]
-    assert validated_recordings(inside, 3) == (1,)
-    assert validated_recordings(beyond, 3) == () and validated_recordings(untested, 3) == ()
+    assert validated(inside) == (1,)
+    assert validated(beyond) == () and validated(untested) == ()
+    # named test sets (a benchmark's protocol): every one inside, or one of them beyond
+    named = [{"name": "a", "path": "inside.csv"}, {"name": "b", "path": "beyond.csv"}]
+    assert validated(dataset(named[:1])) == (1,) and validated(dataset(named)) == ()
     # realizations of one system, every one between the others: none singled out
     (tmp_path / "same").mkdir()
     _, same = _three_recordings(tmp_path / "same", budget=1)

@@ -36,7 +36,7 @@ import numpy as np
 
 from .. import registry
 from ..batch import run_specs
-from ..data.dataset import Dataset, last_samples
+from ..data.dataset import Dataset, is_test, last_samples
 from ..data.delay import dead_times
 from ..data.derived import position_like
 from ..data.repeats import repeat_note, repeats_training
@@ -294,7 +294,8 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
 
     limits = list(allowed_warmup(ds).values())
     max_warmup = min(limits) if limits else None
-    excursion = max((e["excess"] for e in ds.input_excursions()), default=0.0)
+    excursions = ds.input_excursions()
+    excursion = max((e["excess"] for e in excursions), default=0.0)
     short = None
     if n_val < CV_BELOW:
         short = f"the validation split has only {n_val} scored samples" if n_val else "there is no validation split"
@@ -312,7 +313,7 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         short = phase_note(period, folds)
         n_train, n_val = n_train + n_val - (n_train + n_val) // folds, (n_train + n_val) // folds
     folds = {"recordings": left_out, "holdout": 0}.get(mode, folds)
-    inside = validated_recordings(ds, folds) if mode == "recordings" else ()
+    inside = validated_recordings(ds, folds, excursions) if mode == "recordings" else ()
     data = dict(spec.resolved()["data"])
     pieces = [ds.recordings[rec].u[a:b] for rec, a, b in ds.ranges.get("train", [])]
     positions = _positions(pieces, ds.input_names)
@@ -336,13 +337,14 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
     return ctx, Ranking(mode, folds, short, period or 0, repeated, inside)
 
 
-def validated_recordings(ds: Dataset, folds: int) -> tuple[int, ...]:
-    """Recordings left out in turn: when every test input stays inside the training range, only the recordings
-    between the others' operating conditions (:func:`.views.interior_recordings`), so that the validation asks
-    what the test asks (a pressure between two others, not beyond them: a recording at the edge, left out, makes
-    every model extrapolate, and favours the simplest); () for every recording (no test set, a test input beyond
-    the range, or none or every recording between the others)."""
-    if not ds.ranges.get("test") or any(e["split"] == "test" for e in ds.input_excursions()):
+def validated_recordings(ds: Dataset, folds: int, excursions: list[dict[str, Any]]) -> tuple[int, ...]:
+    """Recordings left out in turn: when every test input stays inside the training range (``excursions``:
+    ``ds.input_excursions()``), only the recordings between the others' operating conditions
+    (:func:`.views.interior_recordings`), so that the validation asks what the test asks (a pressure between two
+    others, not beyond them: a recording at the edge, left out, makes every model extrapolate, and favours the
+    simplest); () for every recording (no test set, a test set's input beyond the range, or none or every
+    recording between the others)."""
+    if not ds.test_splits() or any(is_test(e["split"]) for e in excursions):
         return ()
     inside = interior_recordings(ds)
     return tuple(inside) if 0 < len(inside) < folds else ()

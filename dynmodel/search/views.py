@@ -278,9 +278,9 @@ def interior_recordings(ds: Dataset) -> list[int]:
     """The recordings (indices as in :func:`recording_fold`) at operating conditions between the others': for
     every input, its mean and its standard deviation lie inside the range of the other recordings' means
     (widened by :data:`INSIDE_LEVEL` x the input's standard deviation over every recording) and of their standard
-    deviations (widened by :data:`INSIDE_SPREAD` of their largest). Left out, such a recording asks a model to carry over
-    between operating conditions (a pressure between two others, an amplitude between two others), not beyond
-    them; the recordings of one excitation repeated are every one inside."""
+    deviations (widened by :data:`INSIDE_SPREAD` of their largest). Left out, such a recording asks a model to
+    carry over between operating conditions (a pressure between two others, an amplitude between two others),
+    not beyond them; the recordings of one excitation repeated are every one inside."""
     groups = _by_recording(ds)
     inputs = [np.concatenate([ds.recordings[r].u[a:b] for r, a, b in g]) for g in groups]
     means = np.array([np.nanmean(u, axis=0) for u in inputs])

@@ -95,8 +95,8 @@ def free_run_moments(
     """Moments of the readout rows ``[x_t, u_t, f_t (direct)], y_t`` of the external-mode run with
     feedback ``f_t`` (``mix``: share of the measured output, :func:`dynmodel.kernels.free_run_clipped`;
     the output clipped to [clip_lo, clip_hi] is the one fed back); None when a run leaves [lo, hi]. Each run
-    starts from its series' state in ``starts`` (:func:`settled_state`; None: from rest). ``into``: moments to reset and reuse (see
-    :func:`dynmodel.moments.accumulate`)."""
+    starts from its series' state in ``starts`` (:func:`settled_state`; None: from rest). ``into``: moments to
+    reset and reuse (see :func:`dynmodel.moments.accumulate`)."""
     args = net.kernel_args()
     m, n_in, q = net.size, data.n_inputs, data.n_outputs
     K = m + (n_in + q if direct else 0)
