@@ -2,11 +2,13 @@
 
     python benchmarks/auto_population.py                  # 24 systems (about 16 min on 2 cores)
     python benchmarks/auto_population.py --only sys7 --no-defaults
+    python benchmarks/auto_population.py --first-seed 300    # a fresh population, drawn from seeds 300 + K
 
 The other generated cases are chosen by hand, each for a difficulty the search was then taught; this one draws
 its systems from seeds, so that none was picked for the search. System ``sysK`` comes from seed 100 + K (the
 first twelve showed the failure mended by the runs from measured starts, docs/auto.md; the other twelve were
-drawn after it):
+drawn after it; ``--first-seed S`` draws another population, from seeds S + K, for data the search was never
+looked at on):
 
 * a structure: Wiener (linear, then static), Hammerstein (static, then linear), Wiener-Hammerstein, or a
   static nonlinearity in negative feedback around the linear part;
@@ -87,9 +89,26 @@ def _feedback(b: np.ndarray, a: np.ndarray, f: Callable, u: np.ndarray) -> np.nd
     return y
 
 
-def system(k: int) -> tuple[str, dict[str, np.ndarray], dict[str, np.ndarray]]:
-    """System ``sysK``: its description, training series and test series (columns u, y)."""
-    rng = np.random.default_rng(100 + k)
+#: a drawn system is drawn again (from seed + REDRAW) when its series are not finite or reach this magnitude
+#: (a nonlinear feedback loop that diverges: an exponential inside it, seed 302)
+DIVERGED = 1e6
+REDRAW = 1000
+
+
+def system(k: int, first_seed: int = 100) -> tuple[str, dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """System ``sysK`` drawn from seed ``first_seed + k`` (again from ``+ REDRAW`` while its series diverge): its
+    description, training series and test series (columns u, y)."""
+    seed = first_seed + k
+    while True:
+        with np.errstate(all="ignore"):
+            description, train, test = _draw(seed)
+        if all(np.isfinite(v).all() and np.abs(v).max() < DIVERGED for s in (train, test) for v in s.values()):
+            return description, train, test
+        seed += REDRAW
+
+
+def _draw(seed: int) -> tuple[str, dict[str, np.ndarray], dict[str, np.ndarray]]:
+    rng = np.random.default_rng(seed)
     structure = str(rng.choice(["wiener", "hammerstein", "wh", "feedback"]))
     name = str(rng.choice(list(NONLINEARITIES)))
     f = NONLINEARITIES[name]
@@ -122,14 +141,23 @@ CASES = [f"sys{k}" for k in range(SYSTEMS)]
 
 
 def run_case(name: str, folder: Path, args) -> dict[str, Any]:
-    description, train, test = system(int(name[3:]))
+    description, train, test = system(int(name[3:]), args.first_seed)
     row = fit_series(name, folder, args, train, test, list(DEFAULTS))
     row["case"] = f"{name} {description}"
     return row
 
 
 def main() -> None:
-    run_generated(__doc__, CASES, run_case, list(DEFAULTS), "test NMSE % on a recording of its own (noise-free)")
+    run_generated(
+        __doc__,
+        CASES,
+        run_case,
+        list(DEFAULTS),
+        "test NMSE % on a recording of its own (noise-free)",
+        options=lambda ap: ap.add_argument(
+            "--first-seed", type=int, default=100, help="draw system K from seed FIRST_SEED + K (default 100)"
+        ),
+    )
 
 
 if __name__ == "__main__":

@@ -35,6 +35,7 @@ import os
 import tempfile
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -304,10 +305,18 @@ def fit_series(
     return fit_files(name, folder, args, split or {"train": 0.8, "validation": 0.2}, defaults)
 
 
-def run_generated(doc: str, cases: list[str], run_one, defaults: list[str], title: str, families: bool = True) -> None:
+def run_generated(
+    doc: str,
+    cases: list[str],
+    run_one,
+    defaults: list[str],
+    title: str,
+    families: bool = True,
+    options: Callable[[argparse.ArgumentParser], Any] | None = None,
+) -> None:
     """The command line of the generated-case scripts (auto_noisy.py, auto_periodic.py): every case of
     ``cases`` written to a temporary folder and run by ``run_one(name, folder, args)``, the figures kept as
-    JSON after each case and printed as one table."""
+    JSON after each case and printed as one table. ``options`` adds a script's own arguments."""
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--only", nargs="*", choices=list(cases), help="cases (default: all)")
     ap.add_argument("--budget", type=float, help="search budget in seconds (default: auto's own, 300)")
@@ -316,6 +325,8 @@ def run_generated(doc: str, cases: list[str], run_one, defaults: list[str], titl
         ap.add_argument("--families", nargs="*", help="families auto searches (default: every installed one)")
     ap.add_argument("--no-defaults", action="store_true", help="run auto only")
     ap.add_argument("--json", type=Path, help="write every figure as JSON")
+    if options is not None:
+        options(ap)
     args = ap.parse_args()
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     results = []
