@@ -9,8 +9,8 @@ chamber pressure (force from piston position and pressure). ``auto_vs_expert.py`
 fourth, twice:
 
 * ``-1/3/7-5``: the test pressure lies between training pressures. The search then leaves out in turn only the
-  recordings inside the others' input range (3 bar), as the test asks a model to carry over between
-  operating points (docs/auto.md, "Recordings left out");
+  recordings between the others' operating conditions (3 bar: each input's mean and spread inside theirs), as
+  the test asks a model to carry over between operating points (docs/auto.md, "What the search does");
 * ``-1/3/5-7``: the test pressure lies beyond them (49 % of the training range): every recording is left out.
 
 and the bore shapes recorded at more pressures are tested between two of them (Circle, the ``lc`` builds of
@@ -28,10 +28,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from auto_small_data import DATA, SEAL_COLUMNS, fit_files, run_generated
+from auto_small_data import SEAL_COLUMNS, SEALS, fit_files, run_generated
 
 DEFAULTS = ("narx", "esn", "arx")
-FOLDER = DATA / "pneumatic_seal_friction" / "friction"
 #: seals recorded at 1, 3, 5 and 7 bar (O-ring's files are byte-identical to Circle's)
 FOUR_PRESSURES = ("NAPN", "O-ring", "KDN", "NAP310", "PK", "O-ring257", "X-ring257", "Kidney_lc")
 #: bore shapes at more pressures: (shape, training pressures, test pressure)
@@ -59,7 +58,7 @@ CASES: dict[str, tuple[str, tuple[int, ...], int]] = {
 }
 
 
-def seal_data(seal: str, train: tuple[int, ...], test: int, folder: Path = FOLDER) -> dict[str, Any]:
+def seal_data(seal: str, train: tuple[int, ...], test: int, folder: Path = SEALS) -> dict[str, Any]:
     """The data section: force from position and pressure at ``train`` bar, tested at ``test`` bar (the files
     ``<seal>_<pressure>bar.csv`` in ``folder``)."""
     return {
