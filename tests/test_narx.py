@@ -862,6 +862,26 @@ def test_free_run_selection_grows_on_a_window_then_reestimates_on_the_whole_trai
     np.testing.assert_array_equal(longer.family.weights_, plain.family.weights_)
 
 
+def test_free_run_growth_stops_at_its_counted_work_the_same_way_every_time():
+    """``growth_work``: the growth stops once its counted operations per sample reach the limit, and says so;
+    the steps it took are the unlimited growth's first steps (a count, not a clock: the same stop every run)."""
+    raw = narx_raw(n=1500, test_n=300, cost="mse_inf", noise=0.02, degree=2, patience=30, bounds=0.5)
+    raw["model"]["params"]["selection"] = "free_run"
+    free = fit(raw).family.selection_
+    assert free["work"] > 0 and "growth_work" not in free["stopped"]
+    added = [step["added"] for step in free["path"]]
+    assert len(added) > 6
+    # a limit at the work of about the first third of the unlimited growth
+    limit = free["work"] / 3
+    raw["model"]["params"]["growth_work"] = limit
+    runs = [fit(raw).family.selection_ for _ in range(2)]
+    for sel in runs:
+        assert sel["stopped"].startswith("growth_work reached") and sel["work"] >= limit
+        kept = [step["added"] for step in sel["path"]]
+        assert 1 < len(kept) < len(added) and kept == added[: len(kept)]
+    assert runs[0]["path"] == runs[1]["path"] and runs[0]["work"] == runs[1]["work"]
+
+
 # ------------------------------------------------------------------------- thesis reproductions
 
 NOISE_SEEDS = (0, 1, 2)

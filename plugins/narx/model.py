@@ -65,6 +65,7 @@ _CHOOSING = (
     "stop_on",
     "patience",
     "growth_window",
+    "growth_work",
 )
 
 
@@ -99,6 +100,7 @@ class Narx(Family):
         selection: Literal["one_step", "free_run"] = "one_step",
         free_run_start: Literal["linear", "constant"] = "linear",
         growth_window: int | None = None,
+        growth_work: float | None = None,
         max_terms: int | None = None,
         threshold: float | None = None,
         stop_on: Literal["free_run", "one_step"] = "free_run",
