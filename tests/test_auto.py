@@ -558,6 +558,36 @@ def test_a_survivor_s_full_fit_is_estimated_again_from_its_screening_fit(tmp_pat
     assert all(c.get("stands_screened") or c["screen_is_final"] for c in finals)
 
 
+def test_the_free_run_growth_is_bounded_by_a_share_of_the_budget():
+    """The narx candidate that grows its terms on the free-running error can run far beyond the terms it starts
+    from (a noise-free Hammerstein system: 184 - 237 terms per fold, 1095 s for a 300 s budget). Its
+    ``growth_work`` is a quarter of the budget in planned seconds, counted in operations per sample of the growth
+    window, and its planned work never exceeds that bound plus its refit on the whole training split."""
+    from dynmodel.search.space import Found, SearchContext
+    from dynmodel_plugins.narx import Narx
+    from dynmodel_plugins.narx.embedding import pool_size
+
+    u, y = narx(3000, 5)
+    leader = Narx(lags={"u": [0, 1, 2], "y": [1, 2]}, degree=2, max_terms=12, patience=None).fit(u, y, cost="mse1")
+    cand = Candidate(family="narx", params={}, summary="x", cost="mse_inf", work=1.0)
+    pool = pool_size(5, 2, True)
+    grown = {}
+    for budget, n_train in ((300.0, 3200), (300.0, 80000), (1200.0, 80000)):
+        ctx = SearchContext(("u",), ("y",), 1.0, n_train=n_train, n_validation=800, data={}, budget=budget)
+        (growth,) = [
+            c for c in narx_search.neighbours(ctx, Found(cand, leader, {}, 1.0)) if "free_run" in str(c.params)
+        ]
+        window = min(n_train, narx_search.GROWTH_WINDOW)
+        cap = narx_search.GROWTH_CAP * budget
+        assert growth.params["growth_work"] == pytest.approx(cap / (narx_search._GROWTH_OP_COST * window) / 1e6, 1e-3)
+        whole = narx_search._work(ctx, pool, 12)[0] if n_train > window else 0.0
+        assert growth.work is not None and growth.work <= cap + whole
+        grown[budget, n_train] = growth.params["growth_work"]
+    # per sample of the window: a longer record grows on the same window; four times the budget, four times the count
+    assert grown[300.0, 3200] == pytest.approx(grown[300.0, 80000] * narx_search.GROWTH_WINDOW / 3200, 1e-3)
+    assert grown[1200.0, 80000] == pytest.approx(4 * grown[300.0, 80000], 1e-3)
+
+
 def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):
     """The moves stage fits what the diagnosis of the leader proposes. The detectors propose nothing on this
     generated system, so the diagnosis (run in this process with one worker) also returns a proposal of its
@@ -578,6 +608,10 @@ def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):
     model, _ = _fit(_raw(families=["narx"], budget=30), tmp_path)
     rec = model.search
     assert any(s["stage"] == "moves 1" and s["finished"] == s["tasks"] > 0 for s in rec["stages"])
+    # every stage run records the work it was planned at (the diagnosis and the moves too), and together they are
+    # the budget's plan
+    assert all(s["planned"] > 0 for s in rec["stages"] if s["stage"].startswith("moves"))
+    assert sum(s["planned"] for s in rec["stages"]) == pytest.approx(rec["budget"]["planned"], abs=1e-2)
     moved = [c for c in rec["candidates"] if c["origin"].endswith(": test-delay")]
     assert moved and "final" in moved[0]["levels"] and moved[0]["data"] == {"delay_lines": [3]}
 

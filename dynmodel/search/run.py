@@ -569,9 +569,10 @@ class Search:
         s = e.summaries[level]
         return f"leader {e.label} (validation NMSE {s.score:.4g} %)"
 
-    def _run(self, stage: str, tasks: list[Task]) -> list[TaskResult]:
+    def _run(self, stage: str, tasks: list[Task], planned: float | None = None) -> list[TaskResult]:
         """Run ``tasks`` (heaviest first for the pool), record each result as it comes, return them in task
-        order (never completion order)."""
+        order (never completion order). ``planned``: their planned work, for the record (default: the budget's
+        stage of that name)."""
         if not tasks or self.interrupted:
             return []
         t0 = time.perf_counter()
@@ -593,7 +594,7 @@ class Search:
                     "tasks": n,
                     "finished": len(got),
                     "seconds": round(time.perf_counter() - t0, 3),
-                    "planned": round(self.budget.stages.get(stage, 0.0), 3),
+                    "planned": round(self.budget.stages.get(stage, 0.0) if planned is None else planned, 3),
                 }
             )
         out = [got[t.key] for t in tasks if t.key in got]
@@ -886,7 +887,7 @@ class Search:
             )
         groups = self._final_groups(smallest)
         taken = self.budget.take("full", groups, minimum=len(groups))
-        self._run("full: forgetting", [t for g in taken for t in g.tasks])
+        self._run("full: forgetting", [t for g in taken for t in g.tasks], sum(g.work for g in taken))
 
     def _affordable(self, groups: list[Group]) -> list[Group]:
         """The full fits the budget can still take. A candidate whose full fits (every fold) are planned beyond
@@ -960,7 +961,7 @@ class Search:
             refit = self._refit_work(leader)
             if not self.budget.take("moves", [diag], minimum=0, reserve=refit):
                 return
-            results = self._run(f"moves {round_ + 1}: diagnose the leader", diag.tasks)
+            results = self._run(f"moves {round_ + 1}: diagnose the leader", diag.tasks, diag.work)
             if not results or results[0].status != "ok" or not results[0].proposals:
                 return
             new: list[Entry] = []
@@ -979,7 +980,7 @@ class Search:
             taken = self.budget.take("moves", groups, minimum=0, reserve=refit)
             if not taken:
                 return
-            self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks])
+            self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks], sum(g.work for g in taken))
             if self.decide()[0] == leading:
                 return  # no move is chosen over the leader
 
