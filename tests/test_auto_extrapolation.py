@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from beyond_range import CASES
 from conftest import narx, write_csv
 
@@ -163,3 +164,91 @@ def test_a_lightly_damped_resonance_keeps_its_linear_model(tmp_path):
     87.5 % test NMSE. A linear candidate's band is half a range wider under the linear-system band."""
     model = _about_linear(tmp_path, "resonance", budget=20)
     assert model.metrics["test"]["nmse"] < 5.0, (model.search["winner_summary"], model.metrics["test"])
+
+
+def test_the_spread_of_fits_on_the_test_inputs_bounds_their_test_error_from_below():
+    """``spread``: the median over pairs of fits of their runs' mean squared difference on the test inputs (% of
+    the training output variance). Whatever the test output, a pair's mean squared error is at least a quarter of
+    their difference (||a - b||^2 <= 2 ||a - y||^2 + 2 ||b - y||^2)."""
+    from dynmodel.search.checks import spread
+
+    rng = np.random.default_rng(3)
+    y = rng.standard_normal(500)
+    runs = [{"test:1:0": y + 0.3 * rng.standard_normal(500)} for _ in range(2)]
+    d = runs[0]["test:1:0"] - runs[1]["test:1:0"]
+    s = spread(runs)
+    assert s == pytest.approx(100 * np.mean(d * d))
+    errors = [100 * np.mean((r["test:1:0"] - y) ** 2) for r in runs]
+    assert np.mean(errors) >= s / 4
+    # the median over the three pairs of three fits; a fit with no shared test split adds no pair
+    third = {"test:1:0": y + 1.0}
+    pairs = [spread([runs[0], runs[1]]), spread([runs[0], third]), spread([runs[1], third])]
+    assert spread([*runs, third, {"test:2:0": y}]) == pytest.approx(float(np.median(pairs)))
+    assert spread(runs[:1]) is None and spread([]) is None
+
+
+def test_the_test_runs_are_scaled_by_the_training_outputs_and_thinned(tmp_path):
+    """``test_runs``: the free run over each test split, divided by the training outputs' standard deviation, at
+    most SPREAD_SAMPLES samples (every k-th), keyed by split, recording and start."""
+    from dynmodel.search.checks import SPREAD_SAMPLES, test_runs, usual_runs
+    from dynmodel_plugins.narx import Narx
+
+    u, y = narx(3000, 11)
+    ut = np.random.default_rng(5).standard_normal(4500)
+    write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    write_csv(tmp_path / "test.csv", {"u": ut, "y": _system(ut)})
+    raw = {
+        "name": "runs",
+        "data": {"path": "train.csv", "input": ["u"], "output": ["y"], "test": {"path": "test.csv"}},
+        "model": {"family": "narx", "params": {"lags": {"u": [0, 1], "y": [1, 2]}, "degree": 2}},
+        "seed": 0,
+    }
+    spec = validate_spec(raw, "<test>", tmp_path)
+    ds = load_dataset(spec)
+    model, _ = engine.fit_dataset(spec, ds)
+    assert isinstance(model.family, Narx)
+    runs = usual_runs(model, ds)
+    got = test_runs(ds, runs)
+    ((key, run),) = got.items()
+    ((rec, a, b),) = ds.ranges["test"]
+    assert key == f"test:{rec}:{a}" and len(run) <= SPREAD_SAMPLES < b - a
+    std = np.std(ds.concat_outputs("train"), axis=0)
+    np.testing.assert_allclose(run, runs[rec][0][a:b:3] / std)
+
+
+def test_the_search_records_how_far_the_fits_of_each_candidate_part_ways_on_the_test_inputs(tmp_path, monkeypatch):
+    """Every candidate level with two or more fits records its ``test_spread``; the note on the chosen model's
+    fits parting ways is written when a quarter of its spread exceeds SPREAD_NOTE x its validation error (here
+    set to 0 so that it must appear) and names that floor."""
+    import dynmodel.search.run as search_run
+
+    monkeypatch.setattr(search_run, "SPREAD_NOTE", 0.0)
+    monkeypatch.setattr(search_run, "SPREAD_FLOOR", 0.0)
+    u, y = narx(2000, 11)
+    ut = 1.4 * np.random.default_rng(12).standard_normal(800)
+    write_csv(tmp_path / "train.csv", {"u": u, "y": y})
+    write_csv(tmp_path / "test.csv", {"u": ut, "y": _system(ut)})
+    raw = {
+        "name": "spread",
+        "data": {
+            "path": "train.csv",
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 0.7, "validation": 0.3},
+            "test": {"path": "test.csv"},
+        },
+        "model": {"family": "auto", "params": {"budget": 2, "families": ["esn"]}},
+        "seed": 0,
+    }
+    spec = validate_spec(raw, "<test>", tmp_path)
+    with search_options(workers=1):
+        model, _ = engine.fit_dataset(spec, load_dataset(spec))
+    rec = model.search
+    levels = [lv for c in rec["candidates"] for lv in c["levels"].values()]
+    several = [lv for lv in levels if lv["fits"] >= 2 and lv["status"] == "ok"]
+    assert several and all(lv["test_spread"] is not None and lv["test_spread"] > 0 for lv in several)
+    assert all(lv["test_spread"] is None for lv in levels if lv["fits"] < 2)
+    winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
+    parted = winner["levels"][rec["level"]]["test_spread"]
+    (note,) = [n for n in rec["notes"] if "part ways on the test inputs" in n]
+    assert f"at least {parted / 4:.3g} %" in note

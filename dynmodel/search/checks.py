@@ -239,6 +239,46 @@ def usual_runs(model: FittedModel, ds: Dataset) -> UsualRuns:
     return runs
 
 
+#: samples kept of each test split's free run (every k-th), for the spread of a candidate's fits there
+SPREAD_SAMPLES = 2000
+
+
+def test_runs(ds: Dataset, runs: UsualRuns) -> dict[str, np.ndarray]:
+    """The free runs over every test split (inputs only: the runs of :func:`usual_runs`), each output divided by
+    the training outputs' standard deviation, at most :data:`SPREAD_SAMPLES` samples each (every k-th): what
+    :func:`spread` compares across the fits of one candidate. Keys ``split:recording:start``."""
+    std = np.nanstd(ds.concat_outputs("train"), axis=0)
+    std = np.where(std > 0, std, 1.0)
+    out: dict[str, np.ndarray] = {}
+    for split in ds.splits():
+        if not split.startswith("test"):
+            continue
+        for rec, a, b in ds.ranges.get(split, []):
+            if rec in runs and b > a:
+                step = max(1, -(-(b - a) // SPREAD_SAMPLES))
+                out[f"{split}:{rec}:{a}"] = np.ascontiguousarray(runs[rec][0][a:b:step] / std)
+    return out
+
+
+def spread(runs: list[dict[str, np.ndarray]]) -> float | None:
+    """How far the fits of one candidate (its seeds, its folds) part ways on the test inputs: the median over pairs
+    of fits of their runs' mean squared difference, in % of the training output variance (:func:`test_runs`).
+    For any pair, ||a - b||^2 <= 2 (||a - y||^2 + ||b - y||^2), so the pair's mean squared error on the test
+    (against the training output variance) is at least a quarter of their difference, whatever the test outputs
+    are. None with fewer than two fits, or no test split."""
+    diffs = []
+    for i in range(len(runs)):
+        for j in range(i + 1, len(runs)):
+            shared = [k for k in runs[i] if k in runs[j]]
+            if not shared:
+                continue
+            d = np.concatenate([(runs[i][k] - runs[j][k]).ravel() for k in shared])
+            d = d[np.isfinite(d)]
+            if d.size:
+                diffs.append(100.0 * float(np.mean(d * d)))
+    return float(np.median(diffs)) if diffs else None
+
+
 def band_checks(
     model: FittedModel,
     ds: Dataset,

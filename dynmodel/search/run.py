@@ -47,7 +47,18 @@ from ..spec import IN_MEMORY
 from .checks import affine, failed_split, forgets, linear_band, remembers
 from .params import AutoParams, searchable_families
 from .plan import HARD_LIMIT, HARD_SLACK, REFERENCE_WORKERS, TASK_OVERHEAD, Budget, Group
-from .select import EXTRAPOLATION, POOR, Choice, Summary, choose, model_size, sound_within, summarize
+from .select import (
+    EXTRAPOLATION,
+    POOR,
+    SPREAD_FLOOR,
+    SPREAD_NOTE,
+    Choice,
+    Summary,
+    choose,
+    model_size,
+    sound_within,
+    summarize,
+)
 from .space import SIGNED, Candidate, Found, SearchContext, candidates_of, estimated_work
 from .views import (
     MIN_BLOCK,
@@ -1414,6 +1425,16 @@ class Search:
                     f"even the best model is poor: validation NMSE {score:.3g} % after {tried} candidates of "
                     f"{', '.join(families)}; the data may not determine the output from the input (check the "
                     "input and output columns, the sampling, a dead time), or need more data"
+                )
+            parted = winner.summaries[level].spread
+            if parted is not None and parted / 4 > max(SPREAD_NOTE * score, SPREAD_FLOOR):
+                notes.append(
+                    f"the {winner.summaries[level].fits} fits of {winner.label} that were validated (its seeds and "
+                    f"folds) part ways on the test inputs: their runs there differ by {parted:.3g} % of the training "
+                    f"output variance (median over pairs), so each pair errs there by at least {parted / 4:.3g} % on "
+                    f"average, against {score:.3g} % on validation; expect a test error above the validation one. "
+                    "Test inputs unlike the training ones do this (a wider range, another spectrum or hold time): "
+                    "training data like them, or another family (model.params.families), may narrow it"
                 )
         # the first layout's (not the first to finish: that depends on the executor and its timing)
         ref = min(self.references, key=lambda r: r.key).reference if self.references else None

@@ -79,6 +79,8 @@ class TaskResult(PointResult):
     reference: dict[str, Any] | None = None
     selection: dict[str, Any] | None = None
     moments: dict[str, Any] | None = None
+    #: the free runs over the test splits' inputs, scaled and thinned (:func:`.checks.test_runs`); not in the record
+    test_runs: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = super().to_json()
@@ -231,7 +233,7 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any, continued: Any = No
 def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
     from .. import engine, protocol
     from ..usefulness import input_dependence, input_nonlinearity
-    from .checks import affine, band_checks, complexity, measured_starts, start_memory, usual_runs
+    from .checks import affine, band_checks, complexity, measured_starts, start_memory, test_runs, usual_runs
     from .select import moment_score
 
     v = view(ds, task.layout)
@@ -264,6 +266,7 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
         result.nonlinearity = None
     runs_from_start = usual_runs(model, ds)  # every recording's run: the band check, measured starts, start memory
     starts = None if bad else measured_starts(model, ds, runs_from_start)
+    result.test_runs = None if bad else test_runs(ds, runs_from_start)
     result.checks = band_checks(
         model, ds, task.envelope, affine=affine(result.nonlinearity), runs=runs_from_start, starts=starts
     )
