@@ -29,7 +29,7 @@ def _system(u: np.ndarray) -> np.ndarray:
     return y
 
 
-def _search(tmp_path: Path, test_gain: float, budget: float = 2) -> dict:
+def _search(tmp_path: Path, test_gain: float, budget: float = 2, families: tuple[str, ...] = ("narx",)) -> dict:
     u, y = narx(3000, 11)
     ut = test_gain * np.random.default_rng(12).standard_normal(800)
     write_csv(tmp_path / "train.csv", {"u": u, "y": y})
@@ -44,7 +44,7 @@ def _search(tmp_path: Path, test_gain: float, budget: float = 2) -> dict:
             "test": {"path": "test.csv"},
             "init_window": {"test": WINDOW},
         },
-        "model": {"family": "auto", "params": {"budget": budget, "families": ["narx"]}},
+        "model": {"family": "auto", "params": {"budget": budget, "families": list(families)}},
         "seed": 0,
     }
     spec = validate_spec(raw, "<test>", tmp_path)
@@ -224,26 +224,7 @@ def test_the_search_records_how_far_the_fits_of_each_candidate_part_ways_on_the_
 
     monkeypatch.setattr(search_run, "SPREAD_NOTE", 0.0)
     monkeypatch.setattr(search_run, "SPREAD_FLOOR", 0.0)
-    u, y = narx(2000, 11)
-    ut = 1.4 * np.random.default_rng(12).standard_normal(800)
-    write_csv(tmp_path / "train.csv", {"u": u, "y": y})
-    write_csv(tmp_path / "test.csv", {"u": ut, "y": _system(ut)})
-    raw = {
-        "name": "spread",
-        "data": {
-            "path": "train.csv",
-            "input": ["u"],
-            "output": ["y"],
-            "split": {"train": 0.7, "validation": 0.3},
-            "test": {"path": "test.csv"},
-        },
-        "model": {"family": "auto", "params": {"budget": 2, "families": ["esn"]}},
-        "seed": 0,
-    }
-    spec = validate_spec(raw, "<test>", tmp_path)
-    with search_options(workers=1):
-        model, _ = engine.fit_dataset(spec, load_dataset(spec))
-    rec = model.search
+    rec = _search(tmp_path, 1.4, families=("esn",))
     levels = [lv for c in rec["candidates"] for lv in c["levels"].values()]
     several = [lv for lv in levels if lv["fits"] >= 2 and lv["status"] == "ok"]
     assert several and all(lv["test_spread"] is not None and lv["test_spread"] > 0 for lv in several)
