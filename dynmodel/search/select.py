@@ -64,9 +64,10 @@ RESOLVED = 2.0
 POOR = 50.0
 #: the chosen candidate's fits part ways on the test inputs (:func:`.checks.spread`): say so when the floor of their
 #: test error that implies (a quarter of the spread) is this many times its validation error and at least SPREAD_FLOOR
-#: %. On the fresh population (seeds 300) it fired on the four searches behind the best default by 1.9 - 59 x between
-#: validation and test (sys2, sys14, sys20, sys21) and on no other; at 0.0024 % a four-fold NARX model's floor stood
-#: far above its refit's test error (8.4e-7 %): the refit on every sample can do better than the fits on parts
+#: %. On the fresh population (seeds 300) it fired on four searches behind the best default, whose test errors were
+#: 1.9 - 59x their validation errors (sys2, sys14, sys20, sys21), and on no other; at 0.0024 % a four-fold NARX
+#: model's floor stood far above its refit's test error (8.4e-7 %): the refit on every sample can do better than the
+#: fits on parts
 SPREAD_NOTE = 3.0
 SPREAD_FLOOR = 0.01
 

@@ -147,7 +147,8 @@ class NarxFamilyParams(FamilyParams):
         "m (m + P + 1) per output, a free run m, a step's screening of a pool of C monomials C (m + P + 1), P the "
         "largest output lag; 3 to 6e-10 s per operation and sample). The model that validated best so far is "
         "kept, and the same data give the same model on any machine. null (default): no limit. family: auto sets "
-        "it from its budget (a growth to 237 terms on 3200 samples counted 517 and took 564 s; Bouc-Wen's to 90 terms on 12 000 samples 5.8 and 50 s)",
+        "it from its budget (a growth to 237 terms on 3200 samples counted 517 and took 564 s; Bouc-Wen's to 90 "
+        "terms on 12 000 samples 5.8 and 50 s)",
     )
     max_terms: Optional[int] = Field(None, gt=0, description="at most this many terms per output (the constant counts)")
     threshold: Optional[float] = Field(
