@@ -870,15 +870,18 @@ def test_free_run_growth_stops_at_its_counted_work_the_same_way_every_time():
     free = fit(raw).family.selection_
     assert free["work"] > 0 and "growth_work" not in free["stopped"]
     added = [step["added"] for step in free["path"]]
-    assert len(added) > 6
-    # a limit at the work of about the first third of the unlimited growth
-    limit = free["work"] / 3
+    counted = [step["work"] for step in free["path"]]
+    assert len(added) > 6 and counted == sorted(counted) and counted[-1] <= free["work"]
+    # a limit between the counts after the steps a third of the way through: the growth stops at the first step whose
+    # count reaches it, so it keeps exactly the steps up to that one
+    third = len(counted) // 3
+    limit = (counted[third - 1] + counted[third]) / 2
     raw["model"]["params"]["growth_work"] = limit
     runs = [fit(raw).family.selection_ for _ in range(2)]
     for sel in runs:
         assert sel["stopped"].startswith("growth_work reached") and sel["work"] >= limit
-        kept = [step["added"] for step in sel["path"]]
-        assert 1 < len(kept) < len(added) and kept == added[: len(kept)]
+        assert [step["added"] for step in sel["path"]] == added[: third + 1]
+        assert [step["work"] for step in sel["path"]] == counted[: third + 1]
     assert runs[0]["path"] == runs[1]["path"] and runs[0]["work"] == runs[1]["work"]
 
 

@@ -580,10 +580,11 @@ class Search:
         s = e.summaries[level]
         return f"leader {e.label} (validation NMSE {s.score:.4g} %)"
 
-    def _run(self, stage: str, tasks: list[Task], planned: float | None = None) -> list[TaskResult]:
-        """Run ``tasks`` (heaviest first for the pool), record each result as it comes, return them in task
-        order (never completion order). ``planned``: their planned work, for the record (default: the budget's
-        stage of that name)."""
+    def _run(self, stage: str, groups: list[Group], also: list[Task] | None = None) -> list[TaskResult]:
+        """Run the tasks of ``groups`` after ``also`` (unplanned tasks: the references), heaviest first for the pool,
+        record each result as it comes, return them in task order (never completion order); the stage's record
+        carries the groups' planned work."""
+        tasks = [*(also or []), *(t for g in groups for t in g.tasks)]
         if not tasks or self.interrupted:
             return []
         t0 = time.perf_counter()
@@ -605,7 +606,7 @@ class Search:
                     "tasks": n,
                     "finished": len(got),
                     "seconds": round(time.perf_counter() - t0, 3),
-                    "planned": round(self.budget.stages.get(stage, 0.0) if planned is None else planned, 3),
+                    "planned": round(sum(g.work for g in groups), 3),
                 }
             )
         out = [got[t.key] for t in tasks if t.key in got]
@@ -758,8 +759,7 @@ class Search:
             )
             for layout in self.final_layouts
         ]
-        tasks = refs + [t for g in taken for t in g.tasks]
-        self._run("screen", tasks)
+        self._run("screen", taken, also=refs)
         for e in entries:
             if "screen" not in e.summaries:
                 e.verdict = "not run (budget)"
@@ -832,7 +832,7 @@ class Search:
                     new.append(entry)
         groups = [self._group(e, "screen", self.seeds_of(e, 1)) for e in new]
         taken = self.budget.take("grow", groups, minimum=0)
-        self._run("grow", [t for g in taken for t in g.tasks])
+        self._run("grow", taken)
         for e in new:
             if "screen" not in e.summaries:
                 e.verdict = "not run (budget)"
@@ -866,7 +866,7 @@ class Search:
         # a second chance never takes the place of a survivor that passed its screening band check
         least += sum(1 for k in keys if self._second_chance(k))
         taken = self.budget.take("full", groups, minimum=min(least, len(groups)))
-        self._run("full", [t for g in taken for t in g.tasks])
+        self._run("full", taken)
 
     def _stage_forgetting(self) -> None:
         """When the test inputs leave the training range and every model fitted in full that validates within
@@ -898,7 +898,7 @@ class Search:
             )
         groups = self._final_groups(smallest)
         taken = self.budget.take("full", groups, minimum=len(groups))
-        self._run("full: forgetting", [t for g in taken for t in g.tasks], sum(g.work for g in taken))
+        self._run("full: forgetting", taken)
 
     def _affordable(self, groups: list[Group]) -> list[Group]:
         """The full fits the budget can still take. A candidate whose full fits (every fold) are planned beyond
@@ -972,7 +972,7 @@ class Search:
             refit = self._refit_work(leader)
             if not self.budget.take("moves", [diag], minimum=0, reserve=refit):
                 return
-            results = self._run(f"moves {round_ + 1}: diagnose the leader", diag.tasks, diag.work)
+            results = self._run(f"moves {round_ + 1}: diagnose the leader", [diag])
             if not results or results[0].status != "ok" or not results[0].proposals:
                 return
             new: list[Entry] = []
@@ -991,7 +991,7 @@ class Search:
             taken = self.budget.take("moves", groups, minimum=0, reserve=refit)
             if not taken:
                 return
-            self._run(f"moves {round_ + 1}", [t for g in taken for t in g.tasks], sum(g.work for g in taken))
+            self._run(f"moves {round_ + 1}", taken)
             if self.decide()[0] == leading:
                 return  # no move is chosen over the leader
 

@@ -286,7 +286,12 @@ def free_run_selection(
         w = np.zeros(0)
     first = start + emb.max_lag  # scored rows whose every regressor comes from the free run itself
     history: list[dict[str, Any]] = [
-        {"added": " + ".join(emb.label_of(e) for e in exps) or None, "terms": int(len(w)), "start": p.free_run_start}
+        {
+            "added": " + ".join(emb.label_of(e) for e in exps) or None,
+            "terms": int(len(w)),
+            "start": p.free_run_start,
+            "work": work.ops / 1e6,
+        }
     ]
     best = None
     best_err, since_best = np.inf, 0
@@ -343,6 +348,7 @@ def free_run_selection(
                 "added": label if n_out == 1 else f"{label} (output {int(cand.output[j]) + 1})",
                 "error_reduction": float(path.error_reduction[list(path.order).index(j)] / max(yy, 1e-300)),
                 "terms": int(len(w)),
+                "work": work.ops / 1e6,  # counted so far, million operations per sample (growth_work)
             }
         )
         progress("select", None, f"{len(w)} terms: + {label}")
