@@ -25,7 +25,12 @@ The **choice** (:func:`choose`), in order:
    never settles; the reliability of thesis definition 4.4) when one shown to forget them scores within
    :data:`ABOUT_AS_WELL`; a network that reads no measured output shows neither (Silverbox: the degree-4 model
    validated best and tested 0.55 mV on the arrow's tail; a 42-term degree-3 model that forgets its start
-   validated 11 % worse and tested 0.31 mV);
+   validated 11 % worse and tested 0.31 mV); and a model whose fits (seeds, folds) part ways on the test
+   inputs by more than its validation shows (:func:`parts_ways`: a quarter of their spread there, a floor of
+   their test error, above its score and :data:`SPREAD_FLOOR`) when one whose as many fits agree there scores
+   within :data:`ABOUT_AS_WELL` (held steps of another hold time on the test: an internal network, the simplest
+   in the tie, validated at 0.2945 %, its seeds and folds erring by at least 0.41 % on the test inputs, and
+   tested 0.71 %; a larger one validated at 0.292 % with fits that agreed and tested 0.055 %);
 3. candidates within a tie of the lowest score count as equal and the simplest of them wins: the tie is
    :data:`TIE` (1 %) normally, and :data:`CAUTIOUS_TIE` (10 %) when the validation cannot be trusted
    to rank finely: a short validation (cross-validated, or fewer than ``short`` scored samples), test
@@ -335,6 +340,32 @@ def ignores_input(s: Summary) -> bool:
     return s.dependence is not None and s.dependence < IGNORES_INPUT
 
 
+def test_floor(s: Summary) -> float:
+    """The least mean test error (NMSE %) its validated fits can have on the test inputs: a quarter of their
+    spread there (:func:`.checks.spread`), 0 with fewer than two fits or no test split."""
+    return s.spread / 4 if s.spread is not None else 0.0
+
+
+def parts_ways(s: Summary) -> bool:
+    """Do its fits part ways on the test inputs by more than its validation shows: a test floor
+    (:func:`test_floor`) above both its score and :data:`SPREAD_FLOOR`?"""
+    return test_floor(s) > max(s.score, SPREAD_FLOOR)
+
+
+def parted_aside(eligible: list[str], summaries: dict[str, Summary], best: float) -> list[str]:
+    """The candidates of ``eligible`` whose fits part ways on the test inputs (:func:`parts_ways`) while one
+    with as many fits (seeds x layouts, the same kind of evidence) that agree there validates within
+    :data:`ABOUT_AS_WELL` of the score ``best``."""
+    agreeing = {
+        summaries[k].fits
+        for k in eligible
+        if summaries[k].spread is not None
+        and not parts_ways(summaries[k])
+        and summaries[k].score <= ABOUT_AS_WELL * best
+    }
+    return [k for k in eligible if parts_ways(summaries[k]) and summaries[k].fits in agreeing]
+
+
 def choose(
     summaries: dict[str, Summary],
     labels: dict[str, str],
@@ -421,6 +452,26 @@ def choose(
             )
             eligible = [k for k in eligible if k not in aside]
             best = summaries[eligible[0]].score
+    # fits that part ways on the test inputs (their error there cannot be below a quarter of that spread, which
+    # exceeds their validation error): set aside when a candidate whose as many fits (the same kind of evidence)
+    # agree there validates about as well
+    aside = parted_aside(eligible, summaries, best)
+    for k in aside:
+        out.verdicts[k] = (
+            "set aside: its fits part ways on the test inputs by more than its validation error, while a "
+            "candidate whose as many fits agree there validates about as well"
+        )
+    if aside and summaries[aside[0]].score <= best * (1 + CAUTIOUS_TIE):  # it could have been chosen: say why not
+        first = summaries[aside[0]]
+        out.notes.append(
+            f"{labels[aside[0]]} (validation NMSE {first.score:.4g} %) has {first.fits} fits that part ways on the "
+            f"test inputs: their runs there differ by {first.spread:.3g} % of the training output variance, so they "
+            f"err there by at least {test_floor(first):.3g} % on average; candidates whose as many fits agree there "
+            f"and that validate within {100 * (ABOUT_AS_WELL - 1):.0f} % of the best are preferred"
+        )
+    if aside:
+        eligible = [k for k in eligible if k not in aside]
+        best = summaries[eligible[0]].score
     # the validation can itself say whether it resolves a gain when its only doubts are its size (a short
     # cross-validation: compared fold by fold) or a gain over the linear reference too small to trust at
     # once; not when the models will extrapolate, nor across recordings at other operating points
