@@ -1613,7 +1613,11 @@ def test_a_model_whose_fits_part_ways_on_the_test_inputs_gives_way_to_one_whose_
     assert choose({"a": _fits(0.2945, 50, spread=None), "b": agreeing}, labels, short_validation=doubt).key == "a"
     c = choose({"a": parted, "b": agreeing}, labels, short_validation=doubt)
     assert c.key == "b" and c.verdicts["a"].startswith("set aside: its fits part ways")
-    assert "at least 0.41 %" in c.notes[0] and "3 fits that part ways" in c.notes[0]
+    assert "at least 0.41 %" in c.notes[-1] and "3 fits part ways" in c.notes[-1]
+    assert "b is chosen instead" in c.notes[-1]
+    # set aside without changing the choice: a verdict, no note
+    quiet = choose({"a": _fits(0.25, 10, spread=0.4), "b": _fits(0.26, 90, spread=2.0)}, labels)
+    assert quiet.key == "a" and quiet.verdicts["b"].startswith("set aside: its fits part ways") and not quiet.notes
     # the best on validation too, when the one that agrees validates within 25 %
     assert choose({"a": _fits(0.25, 50, spread=1.64), "b": agreeing}, labels).key == "b"
     # the one that agrees validates more than 25 % behind: validation decides (sys10: the floor of the one that

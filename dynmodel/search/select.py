@@ -375,12 +375,15 @@ def choose(
     reference: float | None = None,
     uses_inputs: bool = True,
     fold_blocks: int = 0,
+    parted: bool = True,
 ) -> Choice:
     """The winner among ``summaries`` (candidate key -> Summary at the deciding level), see the module
     docstring. ``labels``: key -> a short description for the notes. ``short_validation``: why the
     validation is short (None when it is not); ``excursion``: how far test inputs leave the training
     range; ``reference``: the linear reference's score at the same level; ``fold_blocks``: when the short
-    validation is a blocked cross-validation, the blocks of each fold (the paired comparison sums them)."""
+    validation is a blocked cross-validation, the blocks of each fold (the paired comparison sums them);
+    ``parted``: set aside the candidates whose fits part ways on the test inputs (False: the choice without
+    that step, to say what it changed)."""
     out = Choice(None)
     order = sorted(summaries, key=lambda k: (summaries[k].score, k))
     for k in order:
@@ -455,22 +458,14 @@ def choose(
     # fits that part ways on the test inputs (their error there cannot be below a quarter of that spread, which
     # exceeds their validation error): set aside when a candidate whose as many fits (the same kind of evidence)
     # agree there validates about as well
-    aside = parted_aside(eligible, summaries, best)
-    for k in aside:
+    apart = parted_aside(eligible, summaries, best) if parted else []
+    for k in apart:
         out.verdicts[k] = (
             "set aside: its fits part ways on the test inputs by more than its validation error, while a "
             "candidate whose as many fits agree there validates about as well"
         )
-    if aside and summaries[aside[0]].score <= best * (1 + CAUTIOUS_TIE):  # it could have been chosen: say why not
-        first = summaries[aside[0]]
-        out.notes.append(
-            f"{labels[aside[0]]} (validation NMSE {first.score:.4g} %) has {first.fits} fits that part ways on the "
-            f"test inputs: their runs there differ by {first.spread:.3g} % of the training output variance, so they "
-            f"err there by at least {test_floor(first):.3g} % on average; candidates whose as many fits agree there "
-            f"and that validate within {100 * (ABOUT_AS_WELL - 1):.0f} % of the best are preferred"
-        )
-    if aside:
-        eligible = [k for k in eligible if k not in aside]
+    if apart:
+        eligible = [k for k in eligible if k not in apart]
         best = summaries[eligible[0]].score
     # the validation can itself say whether it resolves a gain when its only doubts are its size (a short
     # cross-validation: compared fold by fold) or a gain over the linear reference too small to trust at
@@ -525,4 +520,24 @@ def choose(
             out.verdicts[k] = "within the tie, larger" if k in close else "validates worse"
             if k in resolved:
                 out.verdicts[k] = f"validates worse ({by})"
+    if apart:  # say so when the step changed the choice
+        plain = choose(
+            summaries,
+            labels,
+            short_validation=short_validation,
+            excursion=excursion,
+            reference=reference,
+            uses_inputs=uses_inputs,
+            fold_blocks=fold_blocks,
+            parted=False,
+        )
+        if plain.key in apart:
+            first = summaries[plain.key]
+            out.notes.append(
+                f"{labels[plain.key]} (validation NMSE {first.score:.4g} %) would have been chosen, but its "
+                f"{first.fits} fits part ways on the test inputs: their runs there differ by {first.spread:.3g} % of "
+                f"the training output variance, so they err there by at least {test_floor(first):.3g} % on average, "
+                f"while a candidate whose as many fits agree there validates within {100 * (ABOUT_AS_WELL - 1):.0f} % "
+                f"of the best; {labels[simplest]} is chosen instead"
+            )
     return out
