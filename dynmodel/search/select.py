@@ -340,7 +340,7 @@ def ignores_input(s: Summary) -> bool:
     return s.dependence is not None and s.dependence < IGNORES_INPUT
 
 
-def test_floor(s: Summary) -> float:
+def spread_floor(s: Summary) -> float:
     """The least mean test error (NMSE %) its validated fits can have on the test inputs: a quarter of their
     spread there (:func:`.checks.spread`), 0 with fewer than two fits or no test split."""
     return s.spread / 4 if s.spread is not None else 0.0
@@ -348,8 +348,8 @@ def test_floor(s: Summary) -> float:
 
 def parts_ways(s: Summary) -> bool:
     """Do its fits part ways on the test inputs by more than its validation shows: a test floor
-    (:func:`test_floor`) above both its score and :data:`SPREAD_FLOOR`?"""
-    return test_floor(s) > max(s.score, SPREAD_FLOOR)
+    (:func:`spread_floor`) above both its score and :data:`SPREAD_FLOOR`?"""
+    return spread_floor(s) > max(s.score, SPREAD_FLOOR)
 
 
 def parted_aside(eligible: list[str], summaries: dict[str, Summary], best: float) -> list[str]:
@@ -536,7 +536,7 @@ def choose(
             out.notes.append(
                 f"{labels[plain.key]} (validation NMSE {first.score:.4g} %) would have been chosen, but its "
                 f"{first.fits} fits part ways on the test inputs: their runs there differ by {first.spread:.3g} % of "
-                f"the training output variance, so they err there by at least {test_floor(first):.3g} % on average, "
+                f"the training output variance, so they err there by at least {spread_floor(first):.3g} % on average, "
                 f"while a candidate whose as many fits agree there validates within {100 * (ABOUT_AS_WELL - 1):.0f} % "
                 f"of the best; {labels[simplest]} is chosen instead"
             )
