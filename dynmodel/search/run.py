@@ -56,7 +56,9 @@ from .select import (
     Summary,
     choose,
     model_size,
+    parted_words,
     sound_within,
+    spread_floor,
     summarize,
 )
 from .space import SIGNED, Candidate, Found, SearchContext, candidates_of, estimated_work
@@ -1426,13 +1428,12 @@ class Search:
                     f"{', '.join(families)}; the data may not determine the output from the input (check the "
                     "input and output columns, the sampling, a dead time), or need more data"
                 )
-            parted = winner.summaries[level].spread
-            if parted is not None and parted / 4 > max(SPREAD_NOTE * score, SPREAD_FLOOR):
+            kept = winner.summaries[level]
+            if spread_floor(kept) > max(SPREAD_NOTE * score, SPREAD_FLOOR):
                 notes.append(
-                    f"the {winner.summaries[level].fits} fits of {winner.label} that were validated (its seeds and "
-                    f"folds) part ways on the test inputs: their runs there differ by {parted:.3g} % of the training "
-                    f"output variance (median over pairs), so each pair errs there by at least {parted / 4:.3g} % on "
-                    f"average, against {score:.3g} % on validation; expect a test error above the validation one. "
+                    f"the {kept.fits} fits of {winner.label} that were validated (its seeds and folds) part ways on "
+                    f"the test inputs: {parted_words(kept)}, against {score:.3g} % on validation; expect a test "
+                    "error above the validation one. "
                     "Test inputs unlike the training ones do this (a wider range, another spectrum or hold time): "
                     "training data like them, or another family (model.params.families), may narrow it"
                 )

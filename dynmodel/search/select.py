@@ -346,6 +346,14 @@ def spread_floor(s: Summary) -> float:
     return s.spread / 4 if s.spread is not None else 0.0
 
 
+def parted_words(s: Summary) -> str:
+    """How far its fits part ways on the test inputs and the floor of their test error that implies, for a note."""
+    return (
+        f"their runs there differ by {s.spread:.3g} % of the training output variance (median over pairs of fits), "
+        f"so they err there by at least {spread_floor(s):.3g} % on average"
+    )
+
+
 def parts_ways(s: Summary) -> bool:
     """Do its fits part ways on the test inputs by more than its validation shows: a test floor
     (:func:`spread_floor`) above both its score and :data:`SPREAD_FLOOR`?"""
@@ -535,9 +543,7 @@ def choose(
             first = summaries[plain.key]
             out.notes.append(
                 f"{labels[plain.key]} (validation NMSE {first.score:.4g} %) would have been chosen, but its "
-                f"{first.fits} fits part ways on the test inputs: their runs there differ by {first.spread:.3g} % of "
-                f"the training output variance, so they err there by at least {spread_floor(first):.3g} % on average, "
-                f"while a candidate whose as many fits agree there validates within {100 * (ABOUT_AS_WELL - 1):.0f} % "
+                f"{first.fits} fits part ways on the test inputs: {parted_words(first)}, while a candidate whose as many fits agree there validates within {100 * (ABOUT_AS_WELL - 1):.0f} % "
                 f"of the best; {labels[simplest]} is chosen instead"
             )
     return out
