@@ -1633,6 +1633,16 @@ def test_a_model_whose_fits_part_ways_on_the_test_inputs_gives_way_to_one_whose_
     # a candidate without the flaw that validates better than the one that agrees is the one chosen
     three = choose({"a": parted, "b": agreeing, "c": _fits(0.28, 10, spread=None, fits=1)}, labels)
     assert three.key == "c" and three.verdicts["a"].startswith("set aside")
+    # the set-aside of the best moves the tie (the fresh population's sys10: the NARX default, best on validation,
+    # set aside; the tie then reached a smaller model it did not reach before): the note says so
+    moved = choose({"a": _fits(1.0, 20, spread=8.0), "b": _fits(1.005, 10, 0.4), "c": _fits(1.012, 5, 0.4)}, labels)
+    assert moved.key == "c" and moved.verdicts["b"] == "within the tie, larger"
+    assert choose({"a": _fits(1.0, 20, None), "b": _fits(1.005, 10, 0.4), "c": _fits(1.012, 5, 0.4)}, labels).key == "b"
+    note = moved.notes[-1]  # after the tie's own ("chose the simpler c over b")
+    assert (
+        note.startswith("a validated best (validation NMSE 1 %), but its 3 fits part ways") and "at least 2 %" in note
+    )
+    assert note.endswith("the tie is measured from the next best, b, so c is chosen instead of b")
 
 
 def test_the_choice_prefers_a_model_without_an_output_clip_its_input_drives_it_into_when_one_validates_as_well():

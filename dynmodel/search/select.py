@@ -539,11 +539,20 @@ def choose(
             fold_blocks=fold_blocks,
             parted=False,
         )
+        agree = f"while a candidate whose as many fits agree there validates within {100 * (ABOUT_AS_WELL - 1):.0f} % of the best"
         if plain.key in apart:
             first = summaries[plain.key]
             out.notes.append(
                 f"{labels[plain.key]} (validation NMSE {first.score:.4g} %) would have been chosen, but its "
-                f"{first.fits} fits part ways on the test inputs: {parted_words(first)}, while a candidate whose as many fits agree there validates within {100 * (ABOUT_AS_WELL - 1):.0f} % "
-                f"of the best; {labels[simplest]} is chosen instead"
+                f"{first.fits} fits part ways on the test inputs: {parted_words(first)}, {agree}; "
+                f"{labels[simplest]} is chosen instead"
+            )
+        elif plain.key is not None and plain.key != simplest:  # the set-aside moved the tie's best
+            first = summaries[apart[0]]
+            out.notes.append(
+                f"{labels[apart[0]]} validated best (validation NMSE {first.score:.4g} %), but its {first.fits} fits "
+                f"part ways on the test inputs: {parted_words(first)}, {agree}; it is set aside and the tie is "
+                f"measured from the next best, {labels[top]}, so {labels[simplest]} is chosen instead of "
+                f"{labels[plain.key]}"
             )
     return out
