@@ -243,20 +243,26 @@ def usual_runs(model: FittedModel, ds: Dataset) -> UsualRuns:
 SPREAD_SAMPLES = 2000
 
 
-def test_runs(ds: Dataset, runs: UsualRuns) -> dict[str, np.ndarray]:
+def test_runs(ds: Dataset, runs: UsualRuns, warmup: int = 0) -> dict[str, np.ndarray]:
     """The free runs over every test split (inputs only: the runs of :func:`usual_runs`), each output divided by
-    the training outputs' standard deviation, at most :data:`SPREAD_SAMPLES` samples each (every k-th): what
-    :func:`spread` compares across the fits of one candidate. Keys ``split:recording:start``."""
+    the training outputs' standard deviation, at most :data:`SPREAD_SAMPLES` samples each (every k-th from the
+    range's start, so that the fits of one candidate share a grid whatever their tune-in); NaN before the first
+    sample the evaluation scores (``ds.scored``: the transient, the initialization window, the model's
+    ``warmup``, as the band check reads them), which :func:`spread` leaves out. Keys ``split:recording:start``."""
     std = np.nanstd(ds.concat_outputs("train"), axis=0)
     std = np.where(std > 0, std, 1.0)
     out: dict[str, np.ndarray] = {}
     for split in ds.splits():
         if not split.startswith("test"):
             continue
+        scored = {(rec, b): first for rec, first, b in ds.scored(split, warmup)}
         for rec, a, b in ds.ranges.get(split, []):
             if rec in runs and b > a:
                 step = max(1, -(-(b - a) // SPREAD_SAMPLES))
-                out[f"{split}:{rec}:{a}"] = np.ascontiguousarray(runs[rec][0][a:b:step] / std)
+                run = runs[rec][0][a:b:step] / std
+                unscored = -(-(scored.get((rec, b), b) - a) // step)  # grid samples before the first scored
+                run[:unscored] = np.nan
+                out[f"{split}:{rec}:{a}"] = np.ascontiguousarray(run)
     return out
 
 
@@ -265,7 +271,8 @@ def spread(runs: list[dict[str, np.ndarray]]) -> float | None:
     of fits of their runs' mean squared difference, in % of the training output variance (:func:`test_runs`).
     For any pair, ||a - b||^2 <= 2 (||a - y||^2 + ||b - y||^2), so the pair's mean squared error on the test
     (against the training output variance) is at least a quarter of their difference, whatever the test outputs
-    are. None with fewer than two fits, or no test split."""
+    are. Each pair is compared where both runs are finite: the samples the evaluation scores for both (NaN before,
+    :func:`test_runs`). None with fewer than two fits, or no test split."""
     diffs = []
     for i in range(len(runs)):
         for j in range(i + 1, len(runs)):

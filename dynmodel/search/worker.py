@@ -266,7 +266,7 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
         result.nonlinearity = None
     runs_from_start = usual_runs(model, ds)  # every recording's run: the band check, measured starts, start memory
     starts = None if bad else measured_starts(model, ds, runs_from_start)
-    result.test_runs = None if bad else test_runs(ds, runs_from_start)
+    result.test_runs = None if bad else test_runs(ds, runs_from_start, model.warmup)
     result.checks = band_checks(
         model, ds, task.envelope, affine=affine(result.nonlinearity), runs=runs_from_start, starts=starts
     )
