@@ -539,7 +539,8 @@ def choose(
             fold_blocks=fold_blocks,
             parted=False,
         )
-        agree = f"while a candidate whose as many fits agree there validates within {100 * (ABOUT_AS_WELL - 1):.0f} % of the best"
+        within = f"{100 * (ABOUT_AS_WELL - 1):.0f} %"
+        agree = f"while a candidate whose as many fits agree there validates within {within} of the best"
         if plain.key in apart:
             first = summaries[plain.key]
             out.notes.append(
