@@ -200,3 +200,40 @@ def test_fit_notes_a_validation_split_that_repeats_the_training_input(tmp_path, 
     assert result.exit_code == 0, result.output
     text = " ".join(result.output.split())
     assert f"the validation input repeats the training input (exactly, {PERIOD} samples back" in text
+
+
+def test_a_short_periodic_record_is_ranked_on_phases_not_on_blocks_in_time(tmp_path):
+    """Four periods of one input, 20 % validation (fewer than 1000 scored samples, so the search would
+    cross-validate in blocks of time, each of which repeats the input of the periods around it): ranked on
+    the phases of the period held out instead. A random input of the same length keeps the blocks."""
+    from conftest import write_csv
+
+    from dynmodel.data import load_dataset
+    from dynmodel.search.run import CV_BELOW, context
+    from dynmodel.spec import validate_spec
+
+    def ranking(u: np.ndarray, name: str):
+        y = _wiener_hammerstein(u)
+        write_csv(tmp_path / f"{name}.csv", {"u": u, "y": y})
+        write_csv(tmp_path / f"{name}-test.csv", {"u": _periodic(2, seed=9), "y": y[: 2 * PERIOD]})
+        raw = {
+            "name": name,
+            "data": {
+                "path": f"{name}.csv",
+                "input": ["u"],
+                "output": ["y"],
+                "split": {"train": 0.8, "validation": 0.2},
+                "test": {"path": f"{name}-test.csv"},
+            },
+            "model": {"family": "auto"},
+        }
+        spec = validate_spec(raw, "<test>", tmp_path)
+        ds = load_dataset(spec)
+        assert ds.n_scored("validation") < CV_BELOW
+        return context(spec, ds, spec.model.params, None)[1]
+
+    periodic = ranking(_periodic(4), "periodic")
+    assert (periodic.mode, periodic.period, periodic.folds) == ("phase", PERIOD, 5)
+    assert f"a periodic excitation of {PERIOD} samples" in (periodic.short or "")
+    random = ranking(np.random.default_rng(4).standard_normal(4 * PERIOD), "random")
+    assert (random.mode, random.period) == ("folds", 0)
