@@ -215,6 +215,7 @@ def test_a_short_periodic_record_is_ranked_on_phases_not_on_blocks_in_time(tmp_p
     def ranking(u: np.ndarray, name: str):
         y = _wiener_hammerstein(u)
         write_csv(tmp_path / f"{name}.csv", {"u": u, "y": y})
+        # a new realization to test on (its outputs are never read by the layout)
         write_csv(tmp_path / f"{name}-test.csv", {"u": _periodic(2, seed=9), "y": y[: 2 * PERIOD]})
         raw = {
             "name": name,

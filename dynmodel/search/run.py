@@ -321,10 +321,11 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
     held = Layout("fold", fold=folds - 1, folds=folds) if mode == "tail" else Layout("full")
     # a short validation split that repeats the training input (a few periods of a multisine) is no better
     # cross-validated in time: every block held out repeats the input of the periods around it
-    phased = mode == "holdout" or (mode == "folds" and n_val > 0)
-    found = repeated_validation(ds, held) if mode in ("holdout", "tail") or phased else None
+    # (the phases are cut back from the end of the spec's validation split: without one, the blocks stay)
+    may_phase = mode == "holdout" or (mode == "folds" and n_val > 0)
+    found = repeated_validation(ds, held) if mode in ("holdout", "tail") or may_phase else None
     repeated = found if mode in ("holdout", "tail") else None
-    period = _phase_period(ds, found) if phased and n_train + n_val <= CV_MAX else None
+    period = _phase_period(ds, found) if may_phase and n_train + n_val <= CV_MAX else None
     if period is not None:  # a periodic excitation: each phase of the period held out of every period in turn
         mode, small, folds, repeated = "phase", True, FOLDS, None
         short = phase_note(period, folds)
