@@ -323,7 +323,7 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
     # cross-validated in time: every block held out repeats the input of the periods around it
     # (the phases are cut back from the end of the spec's validation split: without one, the blocks stay)
     may_phase = mode == "holdout" or (mode == "folds" and n_val > 0)
-    found = repeated_validation(ds, held) if mode in ("holdout", "tail") or may_phase else None
+    found = repeated_validation(ds, held) if mode == "tail" or may_phase else None
     repeated = found if mode in ("holdout", "tail") else None
     period = _phase_period(ds, found) if may_phase and n_train + n_val <= CV_MAX else None
     if period is not None:  # a periodic excitation: each phase of the period held out of every period in turn
