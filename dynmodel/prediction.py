@@ -69,7 +69,7 @@ def read_inputs(model: FittedModel, input_path: Path, tune_in_path: Path | None 
         raise DataError("tune-in file not found", str(tune_in_path), "check the --tune-in path")
     if tune_in_path is not None and not tune_in_path.is_file():
         raise DataError("is a folder, not a tune-in file", str(tune_in_path), "give --tune-in a data file")
-    cols = read_columns(input_path, model.input_names)
+    cols = read_columns(input_path, model.input_names, gaps=True)  # an empty cell is NaN, as in a spec's data
     u = np.column_stack([cols[n] for n in model.input_names])
     check_finite(u, model.input_names, str(input_path), "fill or remove those samples")
     try:

@@ -1,6 +1,6 @@
 """Is a fitted model of any use? A useless model is never silent.
 
-Four findings, each a :class:`Note` with what was measured and what to try:
+Five findings, each a :class:`Note` with what was measured and what to try:
 
 - ``diverged``: the free run left the divergence band on some split (see :mod:`dynmodel.model`);
 - ``poor``: a held-out split (validation, test, or any other non-training key such as ``test:<name>``)
@@ -10,6 +10,10 @@ Four findings, each a :class:`Note` with what was measured and what to try:
   validation split (training when there is none) by less than :data:`INPUT_DEPENDENCE` of the
   measured output's variance, mean((y(u) - y(mean u))^2) / var(y): the model is (nearly) a constant
   or an autonomous oscillator, whatever it scores;
+- ``quiet``: a held-out split whose measured output barely moves (its standard deviation below :data:`QUIET`
+  of the training output's, per output: a rig left idle, a sensor at rest) scores its NMSE against that small
+  variance, so noise alone reaches 100 %; judged on the training output's variance instead, a model within
+  :data:`POOR_NMSE` there is not called poor, and the split is said to tell little;
 - ``does-not-carry-over``: a test split's NMSE is at least :data:`CARRY_OVER_FACTOR` times the
   validation NMSE and at least :data:`CARRY_OVER_FLOOR` percent: the model was chosen on data that do not
   represent the test (other operating conditions, inputs beyond the training range, a drift), so its
@@ -38,6 +42,9 @@ if TYPE_CHECKING:
 POOR_NMSE = 90.0
 #: input dependence (fraction of the output variance) below which a model ignores its input
 INPUT_DEPENDENCE = 0.01
+#: a held-out split whose output standard deviation is below this fraction of the training output's (every
+#: output) is judged on the training output's variance (a ``quiet`` note instead of ``poor``)
+QUIET = 0.1
 #: a test NMSE at least this many times the validation NMSE ...
 CARRY_OVER_FACTOR = 10.0
 #: ... and at least this many percent: the validation does not represent the test data
@@ -48,7 +55,7 @@ CARRY_OVER_FLOOR = 10.0
 class Note:
     """One finding about a fitted model."""
 
-    kind: str  # "diverged" | "poor" | "ignores-input" | "does-not-carry-over"
+    kind: str  # "diverged" | "poor" | "quiet" | "ignores-input" | "does-not-carry-over"
     split: str | None
     text: str  # what was measured, as a clause of a sentence
     value: float | None = None
@@ -79,6 +86,41 @@ def trivial_nmse_each(ds: Dataset, split: str, warmup: int = 0) -> np.ndarray | 
     if not np.all(var > 0):
         return None
     return 100.0 * np.mean((y - mean) ** 2, axis=0) / var
+
+
+def variance_share(ds: Dataset, split: str, warmup: int = 0) -> np.ndarray | None:
+    """Per output: the variance of ``split``'s scored outputs over the training outputs' (None when either is
+    unknown or the training output is constant)."""
+    rows, train = ds.scored(split, warmup), ds.scored("train", warmup)
+    if not rows or not train:
+        return None
+    y = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in rows])
+    y_train = np.concatenate([ds.recordings[r].y[a:b] for r, a, b in train])
+    var, var_train = np.nanvar(y, axis=0), np.nanvar(y_train, axis=0)
+    if not np.all(np.isfinite(var)) or not np.all(var_train > 0):
+        return None
+    return var / var_train
+
+
+def _quiet(value: float, per: Mapping[str, Any], share: np.ndarray | None, split: str) -> Note | None:
+    """A ``quiet`` note when every output of ``split`` moves less than :data:`QUIET` of the training output and
+    the error, measured against the training output's variance, stays below :data:`POOR_NMSE`; else None."""
+    if share is None or not np.all(share < QUIET**2):
+        return None
+    each = [entry.get("nmse") for entry in per.values()] if len(per) == len(share) > 1 else [value]
+    if any(v is None for v in each):
+        return None
+    on_train = float(np.mean(np.asarray(each, dtype=float) * share)) if len(each) > 1 else value * float(share[0])
+    if on_train >= POOR_NMSE:
+        return None
+    return Note(
+        "quiet",
+        split,
+        f"the {split} split's output barely moves (its standard deviation is {100 * np.sqrt(share.max()):.2g} % of the "
+        f"training output's), so its NMSE of {value:.3g} % measures that small motion and the noise, not the "
+        f"model: measured against the training output's variance, the error is {on_train:.2g} %",
+        on_train,
+    )
 
 
 def trivial_nmse(ds: Dataset, split: str, warmup: int = 0) -> float | None:
@@ -227,6 +269,10 @@ def assess(
         refs = trivial_nmse_each(ds, split, model.warmup) if ds is not None else None
         per = metrics[split].get("per_output") or {}
         shown = split_label(split, metrics[split])
+        quiet = _quiet(value, per, variance_share(ds, split, model.warmup), split) if ds is not None else None
+        if quiet is not None:
+            notes.append(quiet)
+            continue
         whole = _poor(value, None if refs is None else float(np.mean(refs)), split, shown=shown)
         if whole is not None or len(per) < 2:
             notes += [whole] if whole is not None else []
@@ -241,12 +287,15 @@ def assess(
         carried = [_with_offset(n, model, ds, runs) for n in carried]
     notes += carried
     if ds is not None and bad is None:
-        dep = input_dependence(model, ds, runs=runs)
+        # on a validation split whose output barely moves (an idle input) holding the input changes nothing either
+        on = "validation" if ds.ranges.get("validation") else "train"
+        on = "train" if any(n.kind == "quiet" and n.split == on for n in notes) else on
+        dep = input_dependence(model, ds, on, runs=runs)
         if dep is not None and dep < INPUT_DEPENDENCE:
             notes.append(
                 Note(
                     "ignores-input",
-                    "validation" if ds.ranges.get("validation") else "train",
+                    on,
                     f"it ignores its input (holding the input at its mean changes the free run by "
                     f"{100 * dep:.2g} % of the output variance)",
                     dep,
@@ -406,6 +455,11 @@ OFFSET_FIX = (
     "the test recording's zero or operating point differs from the training data's (a sensor offset?), not its "
     "dynamics: remove the offset from the data, or train and validate on recordings that show it"
 )
+#: what to try when a held-out split's output barely moves
+QUIET_FIX = (
+    "hold out a stretch where the input moves the output (data.split, or a validation recording of its own) to "
+    "see how the model does"
+)
 #: what to try when the validation does not represent the test data
 CARRY_OVER_FIX = (
     "validate on data like the test's (a validation split or recording that covers its operating conditions "
@@ -423,7 +477,12 @@ def summary_line(
     """One line for the user: every finding but divergence (reported as an error of its own). A model that
     validates well but does not carry over to the test is said so apart from a model of little use."""
     carry = "; ".join(n.text for n in notes if n.kind == "does-not-carry-over")
-    line = _useless_line([n for n in notes if n.kind != "does-not-carry-over"], spec_path, cost, searched, python)
+    quiet = "; ".join(n.text for n in notes if n.kind == "quiet")
+    kept = [n for n in notes if n.kind not in ("does-not-carry-over", "quiet")]
+    line = _useless_line(kept, spec_path, cost, searched, python)
+    if quiet:
+        said = f"{quiet}. Fix: {QUIET_FIX}"
+        line = said if line is None else f"{line}; also, {said}"
     if not carry:
         return line
     if line is None:

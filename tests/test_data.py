@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import h5py
 import numpy as np
 import pytest
@@ -87,10 +89,50 @@ def test_empty_cells_empty_files_and_folders_are_named(tmp_path):
         read_columns(tmp_path / "folder.csv", ["u"])
 
 
+def test_an_empty_cell_of_a_specs_data_is_a_gap_as_the_text_nan_is(tmp_path, columns):
+    """pandas writes a missing value as an empty cell: in a spec's data it reads as NaN, so a training gap gets
+    the advice a 'NaN' does (data.segments around it) and a test output gap is left out of the score, instead of
+    a refusal that asks to remove the line (which would join the two sides of the gap)."""
+    u, y = columns["u"], columns["y"]
+
+    def write(name: str, gap: str, rows: slice, column: str) -> Path:
+        lines = ["u,y"]
+        for i in range(len(u)):
+            cells = [repr(float(u[i])), repr(float(y[i]))]
+            if i in range(len(u))[rows]:
+                cells[["u", "y"].index(column)] = gap
+            lines.append(",".join(cells))
+        (tmp_path / name).write_text("\n".join(lines) + "\n")
+        return tmp_path / name
+
+    messages = []
+    for gap in ("", "NaN"):
+        with pytest.raises(DataError) as info:
+            load_dataset(_file_spec(write(f"train{gap}.csv", gap, slice(20, 25), "u")))
+        messages.append(str(info.value).replace(f"train{gap}.csv", "train.csv"))
+    assert messages[0] == messages[1]
+    assert "column 'u' has NaN at sample 20 (5 non-finite values" in messages[0]
+    assert "data.segments: [[0, 20], [25, 50]]" in messages[0]
+    clean = write_csv(tmp_path / "clean.csv", {"u": u, "y": y})
+    tested = []
+    for gap in ("", "NaN"):
+        test = write(f"test{gap}.csv", gap, slice(30, 40), "y")
+        ds = load_dataset(_file_spec(clean, split={"train": 0.8, "validation": 0.2}, test={"path": test.name}))
+        tested.append(ds.concat_outputs("test")[:, 0])
+    np.testing.assert_array_equal(tested[0], tested[1])
+    assert np.isnan(tested[0]).sum() == 10
+
+
 def test_text_cell_that_is_not_a_number(tmp_path):
     (tmp_path / "d.csv").write_text("u,y\n1,2\n3,abc\n")
     with pytest.raises(DataError, match="'abc' at line 3"):
         read_columns(tmp_path / "d.csv", ["u", "y"])
+    # a logger's date-and-time stamps are named as such, with how to give the time instead
+    (tmp_path / "t.csv").write_text("time,u,y\n2024-01-01 00:00:00.000000,1,2\n2024-01-01 00:00:00.010000,3,4\n")
+    with pytest.raises(DataError) as info:
+        read_columns(tmp_path / "t.csv", ["time", "u", "y"])
+    assert "holds the date and time '2024-01-01 00:00:00.000000' at line 2" in str(info.value)
+    assert "seconds since the start" in str(info.value) and "header: false" not in str(info.value)
     # the line of the file, whatever comment and blank lines come before it
     (tmp_path / "e.csv").write_text("# rig 7\nu,y\n\n1,2\n# pause\n3,abc\n")
     with pytest.raises(DataError, match="'abc' at line 6"):

@@ -417,6 +417,51 @@ def test_usefulness_of_a_good_and_of_a_useless_model(fitted, folder):
     assert "cost: mse_inf" in line and "cost: mse_inf" not in summary_line(notes, "s.yaml", "mse_inf")
 
 
+def test_a_validation_split_where_the_rig_stands_idle_is_not_called_useless(folder):
+    """The input held at 0 over the validation split (a rig left idle at the end of the recording): its output is
+    the sensor noise alone (3 % of the training output's standard deviation), so a good model's free run scores
+    about 100 % NMSE there. Judged against the training output's variance it is fine, and `fit` says the split
+    tells little instead of calling the model useless; a model as far off on the training output's scale is
+    still poor."""
+    from dynmodel.usefulness import QUIET_FIX, _quiet
+
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(3000)
+    u[2300:] = 0.0  # idle from 100 samples before the validation split: its output has settled
+    y = np.zeros(3000)
+    for t in range(1, 3000):
+        y[t] = 0.8 * y[t - 1] + 0.3 * np.tanh(u[t - 1])
+    y += 0.01 * rng.standard_normal(3000)
+    write_csv(folder / "idle.csv", {"u": u, "y": y})
+    raw = {
+        "data": {"path": "idle.csv", "input": ["u"], "output": ["y"], "split": {"train": 0.8, "validation": 0.2}},
+        "model": {"family": "narx", "params": {"terms": ["1", "y[t-1]", "u[t-1]", "u[t-1]^3"]}},
+    }
+    spec = make_spec(raw, folder)
+    ds = load_dataset(spec)
+    model, runs = engine.fit_dataset(spec, ds)
+    assert model.metrics["train"]["nmse"] < 5.0 and model.metrics["validation"]["nmse"] > 90.0
+    notes = assess(model, ds, runs)
+    assert [n.kind for n in notes] == ["quiet"]
+    assert notes[0].value < 1.0  # percent of the training output's variance
+    line = summary_line(notes, "s.yaml", "mse1")
+    assert "validation split's output barely moves" in line and line.endswith(QUIET_FIX)
+    assert "of little use" not in line
+    # the narx default's terms chosen on that validation: a constant predicts its noise as well as any model,
+    # so no input term is kept; measured on the training split instead, the model is said to ignore its input
+    raw["model"] = {"family": "narx", "params": {"lags": {"u": [1], "y": [1]}, "degree": 3}}
+    spec = make_spec(raw, folder)
+    with pytest.warns(UserWarning, match="no kept term depends on an input"):
+        model, runs = engine.fit_dataset(spec, ds)
+    notes = assess(model, ds, runs)
+    assert [(n.kind, n.split) for n in notes] == [("quiet", "validation"), ("ignores-input", "train")]
+    line = summary_line(notes, "s.yaml", "mse1")
+    assert line.startswith("this model is of little use: it ignores its input") and "barely moves" in line
+    assert _quiet(100.0, {}, np.array([1e-3]), "validation") is not None
+    assert _quiet(1e5, {}, np.array([1e-3]), "validation") is None  # 100 % of the training variance: poor
+    assert _quiet(100.0, {}, np.array([0.02]), "validation") is None  # 14 % of the training spread: not quiet
+
+
 def test_a_poor_auto_model_names_the_better_candidates_the_test_band_rejected():
     """Advice to raise the budget was wrong where the search had better-validating candidates and rejected them
     because their run left the output band on the test input: the user is told which, and what to do."""

@@ -383,7 +383,14 @@ def _read_recording(p: Any, src: dict[str, Any], resolve) -> tuple[np.ndarray, n
     inputs, outputs = [str(s).strip() for s in src["input"]], [str(s).strip() for s in src["output"]]
     time_col = src.get("time_column")
     extra = [time_col] if time_col is not None else []
-    opts = {"header": src.get("header", True), "columns": src.get("columns"), "delimiter": src.get("delimiter")}
+    # an empty cell reads as NaN, as the text 'NaN' does, so that a gap meets the same checks and advice (a
+    # training gap: data.segments around it; a test output: left out of the score), whichever way it was written
+    opts = {
+        "header": src.get("header", True),
+        "columns": src.get("columns"),
+        "delimiter": src.get("delimiter"),
+        "gaps": True,
+    }
     if isinstance(p, dict):  # the input columns in one file, the output columns in another
         in_path, out_path = resolve(p["input"]), resolve(p["output"])
         icols = read_columns(in_path, list(src["input"]) + extra, **opts)

@@ -27,6 +27,8 @@ _SELECTOR = re.compile(r"^(?P<name>.+?)\[(?P<col>\d+)\]$")
 TEXT_SUFFIXES = {".csv", ".txt", ".tsv", ".dat"}
 HDF5_SUFFIXES = {".h5", ".hdf5", ".hdf"}
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
+#: an ISO 8601 date with a time of day (a logger's time stamp)
+_DATE_TIME = re.compile(r"^\d{4}-\d{2}-\d{2}[ T]\d{2}:\d{2}")
 
 
 def _split_selector(sel: str | int) -> tuple[str, int | None]:
@@ -254,6 +256,14 @@ def read_text(
                         continue
                     except ValueError:
                         pass
+                if _is_date_time(text):
+                    raise DataError(
+                        f"column '{key}' holds the date and time '{text}' at line {body_numbers[row]}; time stamps "
+                        "are read as numbers (seconds, or units of data.time_unit)",
+                        str(path),
+                        "write the stamps as seconds since the start (pandas: (t - t[0]).dt.total_seconds()), or "
+                        "leave data.time_column out and give data.sampling_time",
+                    ) from None
                 raise DataError(
                     f"column '{key}' holds '{text}' at line {body_numbers[row]}, which is not a number",
                     str(path),
@@ -262,6 +272,17 @@ def read_text(
                     else "fix or remove that line",
                 ) from None
     return out
+
+
+def _is_date_time(text: str) -> bool:
+    """Does ``text`` read as an ISO 8601 date with a time (``2024-01-01 00:00:00.010``, ``2024-01-01T10:00``)?"""
+    if not _DATE_TIME.match(text):
+        return False
+    try:
+        np.datetime64(text.replace(" ", "T", 1))
+    except ValueError:
+        return False
+    return True
 
 
 def _read_bytes(path: Path) -> bytes:
