@@ -152,6 +152,23 @@ def _latin1_column(path: Path) -> None:
     path.write_bytes(text.encode("latin-1"))
 
 
+def _empty_gap(path: Path) -> None:
+    """20 samples missing in the input, written as empty cells (as pandas writes NaN)."""
+    lines = csv_text(_data()).splitlines()
+    for row in range(301, 321):  # samples 300 - 319 (the header is line 0)
+        t, _, y = lines[row].split(",")
+        lines[row] = f"{t},,{y}"
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _dated(path: Path) -> None:
+    """A logger's time stamps: dates and times, 10 ms apart."""
+    d = _data()
+    stamps = np.datetime64("2024-01-01T10:00:00.000") + np.arange(len(d["u"])) * np.timedelta64(10, "ms")
+    rows = [f"{str(s).replace('T', ' ')},{u:.10g},{y:.10g}" for s, u, y in zip(stamps, d["u"], d["y"])]
+    path.write_text("t,u,y\n" + "\n".join(rows) + "\n")
+
+
 def _utf16(path: Path) -> None:
     path.write_bytes(csv_text(_data(), sep="\t").encode("utf-16"))
 
@@ -535,6 +552,18 @@ def cases() -> list[Case]:
             ["validate", "s.yaml"],
             expect="decimal commas",
             setup=_with_data("lab.csv", lambda p: write_csv(p, _data(), sep=",", decimal=",")),
+        ),
+        C(
+            "data-gap-of-empty-cells",
+            ["validate", "s.yaml"],
+            expect="data.segments: [[0, 300], [320, 600]]",
+            setup=_with_data("gap.csv", _empty_gap),
+        ),
+        C(
+            "data-time-column-of-dates",
+            ["validate", "s.yaml"],
+            expect="holds the date and time",
+            setup=_with_data("dated.csv", _dated, time_column="t"),
         ),
         C(
             "data-missing-column",

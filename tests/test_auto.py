@@ -956,6 +956,44 @@ def test_the_screening_view_keeps_the_last_training_samples(tmp_path):
     assert sum(b - a for _, a, b in v.ranges["validation"]) == 1080
 
 
+def test_a_validation_split_whose_output_barely_moves_is_cross_validated_in_blocks(tmp_path):
+    """The input held at 0 over a long validation split (a rig left idle): its output is the sensor noise, which a
+    constant predicts as well as any model, so the candidates are cross-validated in blocks of the training and
+    validation samples instead, and the reason is said; the same record with the input moving throughout keeps
+    its validation split."""
+    from dynmodel.search.params import AutoParams
+    from dynmodel.search.run import CV_BELOW, context
+    from dynmodel.spec import validate_spec
+
+    u, y = narx(6000, 11)
+    rankings = []
+    for name, idle in (("idle", True), ("moving", False)):
+        v = u.copy()
+        if idle:
+            v[4400:] = 0.0
+        y = np.zeros(6000)
+        for t in range(1, 6000):
+            y[t] = 0.8 * y[t - 1] + 0.3 * np.tanh(v[t - 1])
+        y += 0.01 * np.random.default_rng(3).standard_normal(6000)
+        write_csv(tmp_path / f"{name}.csv", {"u": v, "y": y})
+        raw = {
+            "data": {
+                "path": f"{name}.csv",
+                "input": ["u"],
+                "output": ["y"],
+                "split": {"train": 0.75, "validation": 0.25},
+            }
+        }
+        spec = validate_spec(raw, "<test>", tmp_path)
+        ds = load_dataset(spec)
+        assert ds.n_scored("validation") >= CV_BELOW
+        rankings.append(context(spec, ds, AutoParams(), None)[1])
+    idle, moving = rankings
+    assert idle.mode == "folds" and "the validation output barely moves" in (idle.doubt() or "")
+    assert moving.mode == "holdout" and moving.short is None
+
+
+@pytest.mark.slow
 def test_long_data_without_a_validation_split_is_ranked_on_a_held_out_tail(tmp_path, monkeypatch):
     """A training-only split too long to cross-validate was ranked on the training error, and candidates that
     stop on a validation split (the narx default's FOS) failed without a word; the last block of the

@@ -312,6 +312,8 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
     short = None
     if n_val < CV_BELOW:
         short = f"the validation split has only {n_val} scored samples" if n_val else "there is no validation split"
+    else:
+        short = quiet_validation(ds)
     folds, left_out = possible_folds(ds, FOLDS), possible_recording_folds(ds)
     small = short is not None and n_train + n_val <= CV_MAX and folds >= 2
     mode = "recordings" if left_out else ("folds" if small else "holdout")
@@ -353,6 +355,21 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
         signed=_signed(pieces, ds.input_names, positions),
     )
     return ctx, Ranking(mode, folds, short, period or 0, repeated, inside)
+
+
+def quiet_validation(ds: Dataset) -> str | None:
+    """Why the validation split cannot rank, when its output barely moves (every output's standard deviation
+    below :data:`~dynmodel.usefulness.QUIET` of the training output's: the rig idle, a sensor at rest): there a
+    constant predicts the noise as well as any model; None otherwise."""
+    from ..usefulness import QUIET, variance_share
+
+    share = variance_share(ds, "validation")
+    if share is None or not np.all(share < QUIET**2):
+        return None
+    return (
+        f"the validation output barely moves (its standard deviation is {100 * np.sqrt(share.max()):.2g} % of the "
+        "training output's), so it cannot tell a model from a constant"
+    )
 
 
 def validated_recordings(ds: Dataset, folds: int, excursions: list[dict[str, Any]]) -> tuple[int, ...]:
