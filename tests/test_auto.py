@@ -530,6 +530,7 @@ def test_a_full_fit_planned_beyond_the_budget_leaves_the_screening_fit_standing(
     assert leaderboard(rec)[0]["key"] == rec["winner"] and leaderboard(rec)[0]["level"] == "screened"  # marked *
 
 
+@pytest.mark.slow
 def test_a_survivor_s_full_fit_is_estimated_again_from_its_screening_fit(tmp_path, monkeypatch):
     """A starting candidate guesses its size; its screening fit shows it (on three recordings of 50k samples the
     narx longer-memory candidate guessed 40 terms and kept about 170). The family's ``full_work`` hook estimates
@@ -588,6 +589,7 @@ def test_the_free_run_growth_is_bounded_by_a_share_of_the_budget():
     assert grown[1200.0, 80000] == pytest.approx(4 * grown[300.0, 80000], 1e-3)
 
 
+@pytest.mark.slow
 def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):
     """The moves stage fits what the diagnosis of the leader proposes. The detectors propose nothing on this
     generated system, so the diagnosis (run in this process with one worker) also returns a proposal of its
@@ -616,6 +618,7 @@ def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):
     assert moved and "final" in moved[0]["levels"] and moved[0]["data"] == {"delay_lines": [3]}
 
 
+@pytest.mark.slow
 def test_the_moves_extend_the_model_the_choice_keeps_not_one_it_set_aside(tmp_path, monkeypatch):
     """When the choice sets the best validated model aside (here: forced onto the second one, as a model that
     remembers its start or ignores its input is set aside), the diagnosis and its proposals extend the model the
@@ -1112,6 +1115,7 @@ def test_the_choice_is_fitted_again_on_every_fitting_sample_with_its_choices_fro
     assert model.metrics["test"]["nmse"] < 1.0
 
 
+@pytest.mark.slow
 def test_a_refit_that_fails_from_the_familys_start_is_tried_from_the_model_validated(tmp_path, monkeypatch):
     """A family may offer a warm start (``frozen_config()["warm"]``): when the refit from its own start fails or
     stalls, the search fits once more from the model validated's values, in its scaling, and keeps that fit when
@@ -1848,6 +1852,7 @@ def test_validation_blocks_sit_at_the_same_samples_whatever_the_warmup():
     assert scores[BLOCKS + 2] == pytest.approx(scores[BLOCKS + 3])
 
 
+@pytest.mark.slow
 def test_on_noisy_data_the_search_keeps_the_model_the_validation_resolves_as_better(tmp_path):
     """A linear plant measured with noise a third of its output's size: every candidate validates near the
     noise floor (about 10 %), so nothing beats the linear reference by 10 %. The 10 % tie took the fewest

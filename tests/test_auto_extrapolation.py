@@ -76,6 +76,7 @@ def _second_chances(record: dict) -> int:
     return sum(1 for c in record["candidates"] if "screening fit left the output band" in c["origin"])
 
 
+@pytest.mark.slow
 def test_a_test_input_beyond_the_training_range_gets_several_full_fits(tmp_path):
     inside, beyond = tmp_path / "inside", tmp_path / "beyond"
     inside.mkdir()
@@ -98,6 +99,7 @@ def test_a_test_input_beyond_the_training_range_gets_several_full_fits(tmp_path)
     assert any(isinstance(m, float) for m in memories["beyond"]), memories
 
 
+@pytest.mark.slow
 def test_a_budget_that_allows_it_fits_every_candidate_screened_near_the_best_in_full(tmp_path):
     """The screening variant ranks the full ones coarsely: with budget to spare, every candidate screened within
     SURVIVOR_FACTOR of the best is fitted in full, not only the best SURVIVORS; the rest are not."""
@@ -147,6 +149,7 @@ def test_a_linear_system_driven_beyond_its_training_range_keeps_a_linear_model(t
     assert model.metrics["test"]["nmse"] < 0.01, (model.search["winner_summary"], model.metrics["test"])
 
 
+@pytest.mark.slow
 def test_a_drifting_integrator_keeps_a_linear_model(tmp_path):
     """A cart pushed by a force with a small mean: its position drifts beyond the training range while the force
     stays inside its own. The strict band rejected every model that follows the drift (the NARX default,
@@ -157,6 +160,7 @@ def test_a_drifting_integrator_keeps_a_linear_model(tmp_path):
     assert model.metrics["test"]["nmse"] < 5.0, (model.search["winner_summary"], model.metrics["test"])
 
 
+@pytest.mark.slow
 def test_a_lightly_damped_resonance_keeps_its_linear_model(tmp_path):
     """A resonance at 1 Hz (damping 0.02) sampled at 1 kHz, driven by steps held 100 samples: the test input's
     realization takes the true output 0.53 training ranges beyond the training output range. Every linear NARX

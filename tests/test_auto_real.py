@@ -45,6 +45,7 @@ def test_with_a_separate_test_recording_auto_is_as_good_as_the_narx_default(name
     assert auto.metrics["test"]["nmse"] < 1.05 * default.metrics["test"]["nmse"]
 
 
+@pytest.mark.slow
 @needs_seals
 def test_after_a_cross_validation_the_model_kept_fits_its_data_as_the_folds_did():
     """500 samples of the NAP310 seal (300 training, 100 validation, 100 test), cross-validated in five blocks.

@@ -83,6 +83,7 @@ def test_validate_names_the_dead_time_and_the_search_records_it(tmp_path, cli):
     assert abs(ctx.dead_times["u"] - 25) <= 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("delay", [25])
 def test_a_search_on_a_delayed_plant_reaches_the_delayed_input(tmp_path, delay):
     """The default's lags (0 .. 6) cannot reach an input that acts 25 samples later; the candidate from the

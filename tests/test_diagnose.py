@@ -152,6 +152,7 @@ def test_direction_dependence_in_the_dahl_generator_data(seed, tmp_path):
     assert result.gain["relative_reduction"] > 0.8
 
 
+@pytest.mark.slow
 def test_clean_data_with_an_adequate_model_names_no_cause(tmp_path):
     """False alarms over 4 kinds of clean data x 15 seeds (the README quotes 400 runs)."""
     alarms, runs = [], 0
@@ -247,6 +248,7 @@ def test_cli_adequate_model_proposes_nothing(cli, tmp_path):
     assert "**Adequate**" in index and ", 1 recording(s), " in index
 
 
+@pytest.mark.slow
 def test_diagnose_of_an_auto_spec_names_the_model_the_search_chose(cli, tmp_path):
     """The report, the console line and the JSON name the family auto chose and its cost, not 'auto' and
     'None'."""

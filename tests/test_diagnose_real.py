@@ -44,6 +44,7 @@ def test_pneumatic_seal_one_step_model_loses_track_and_free_running_estimation_f
     assert min(gain["uncertainty"]["relative_reduction"]["values"]) > 0.99
 
 
+@pytest.mark.slow
 @needs_pneumatic
 def test_pneumatic_seal_extrapolating_to_a_higher_pressure_diverges(cli, tmp_path):
     spec = ROOT / "specs" / "diagnose-pneumatic-seal-pressures.yaml"

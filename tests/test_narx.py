@@ -765,6 +765,7 @@ def test_defaults_work_on_a_first_try():
     assert any(t.startswith("u[") or "* u[" in t for t in m.family.terms_[0])
 
 
+@pytest.mark.slow
 def test_when_every_finalist_fails_its_free_run_the_next_structure_in_line_is_fitted():
     """A Wiener system (second-order filter, then x + 0.2 x^3) with 1 % output noise: the lag and degree search's
     best least-squares model (degree 3, lags up to 6, 113 terms) validates at 0.03 % clipped as it runs, but

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from conftest import write_csv
 from scipy import signal
 
@@ -75,6 +76,7 @@ def test_a_nonlinear_model_keeps_its_least_squares_start(tmp_path):
     assert any(e.sum() > 1 for e in fitted.family.exponents_)  # a nonlinear term was kept
 
 
+@pytest.mark.slow
 def test_auto_finds_the_linear_output_error_model_of_a_lightly_damped_system(tmp_path):
     """Without the high-order output-error candidate the search chose a linear model on lags up to 20 started
     from measured outputs: 12.5 % test NMSE."""

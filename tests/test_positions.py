@@ -174,6 +174,7 @@ def test_validate_names_the_inputs_that_move_like_a_position(tmp_path, cli):
     assert "auto: inputs that move like a position: position (" in result.output
 
 
+@pytest.mark.slow
 def test_a_friction_search_measures_direction_features_unless_data_extensions_are_excluded(tmp_path):
     rec = _dahl_search(tmp_path, [])
     assert rec["context"]["positions"] == {"position": pytest.approx(1.7e-7, rel=0.2)}
@@ -182,6 +183,7 @@ def test_a_friction_search_measures_direction_features_unless_data_extensions_ar
     assert not any(c["data"] for c in _dahl_search(tmp_path, ["data-extensions"])["candidates"])
 
 
+@pytest.mark.slow
 def test_on_dahl_friction_the_narx_default_with_direction_features_validates_far_better_than_without(tmp_path):
     """A Dahl force follows the travel since the last reversal: a polynomial of it and the direction fits what a
     polynomial of the position lags cannot (benchmarks/auto_friction.py: 0.043 % test NMSE, the NARX default
@@ -222,6 +224,7 @@ def _lugre_velocity(tmp_path, n: int = 4000) -> dict:
     }
 
 
+@pytest.mark.slow
 def test_a_velocity_changes_sign_and_the_narx_default_on_its_sign_validates_far_better(tmp_path):
     """A LuGre force switches on the sign of the sliding velocity, which no polynomial of the velocity gives
     (benchmarks/auto_friction.py has the position; with the velocity as the input, 12000 samples: auto 3.1 %
