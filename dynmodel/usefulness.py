@@ -13,7 +13,8 @@ Five findings, each a :class:`Note` with what was measured and what to try:
 - ``quiet``: a held-out split whose measured output barely moves (its standard deviation below :data:`QUIET`
   of the training output's, per output: a rig left idle, a sensor at rest) scores its NMSE against that small
   variance, so noise alone reaches 100 %; judged on the training output's variance instead, a model within
-  :data:`POOR_NMSE` there is not called poor, and the split is said to tell little;
+  :data:`POOR_NMSE` there is not called poor, the split is said to tell little, and neither its input
+  dependence nor its carry-over is judged on it;
 - ``does-not-carry-over``: a test split's NMSE is at least :data:`CARRY_OVER_FACTOR` times the
   validation NMSE and at least :data:`CARRY_OVER_FLOOR` percent: the model was chosen on data that do not
   represent the test (other operating conditions, inputs beyond the training range, a drift), so its
@@ -111,7 +112,7 @@ def _quiet(value: float, per: Mapping[str, Any], share: np.ndarray | None, split
     if any(v is None for v in each):
         return None
     on_train = float(np.mean(np.asarray(each, dtype=float) * share)) if len(each) > 1 else value * float(share[0])
-    if on_train >= POOR_NMSE:
+    if not on_train < POOR_NMSE:  # NaN too
         return None
     return Note(
         "quiet",
@@ -269,9 +270,9 @@ def assess(
         refs = trivial_nmse_each(ds, split, model.warmup) if ds is not None else None
         per = metrics[split].get("per_output") or {}
         shown = split_label(split, metrics[split])
-        quiet = _quiet(value, per, variance_share(ds, split, model.warmup), split) if ds is not None else None
-        if quiet is not None:
-            notes.append(quiet)
+        low = _quiet(value, per, variance_share(ds, split, model.warmup), split) if ds is not None else None
+        if low is not None:
+            notes.append(low)
             continue
         whole = _poor(value, None if refs is None else float(np.mean(refs)), split, shown=shown)
         if whole is not None or len(per) < 2:
@@ -282,14 +283,15 @@ def assess(
             v = entry.get("nmse")
             note = None if v is None else _poor(v, None if refs is None else float(refs[j]), split, name, shown)
             notes += [note] if note is not None else []
-    carried = carry_over(metrics, search_validation(model))
+    quiet = {n.split for n in notes if n.kind == "quiet"}  # their NMSE measures the noise: no carry-over to judge
+    carried = [n for n in carry_over(metrics, search_validation(model)) if n.split not in quiet]
     if ds is not None and runs is not None:
         carried = [_with_offset(n, model, ds, runs) for n in carried]
     notes += carried
     if ds is not None and bad is None:
         # on a validation split whose output barely moves (an idle input) holding the input changes nothing either
         on = "validation" if ds.ranges.get("validation") else "train"
-        on = "train" if any(n.kind == "quiet" and n.split == on for n in notes) else on
+        on = "train" if on in quiet else on
         dep = input_dependence(model, ds, on, runs=runs)
         if dep is not None and dep < INPUT_DEPENDENCE:
             notes.append(

@@ -423,7 +423,7 @@ def test_a_validation_split_where_the_rig_stands_idle_is_not_called_useless(fold
     about 100 % NMSE there. Judged against the training output's variance it is fine, and `fit` says the split
     tells little instead of calling the model useless; a model as far off on the training output's scale is
     still poor."""
-    from dynmodel.usefulness import QUIET_FIX, _quiet
+    from dynmodel.usefulness import CARRY_OVER_FACTOR, CARRY_OVER_FLOOR, QUIET_FIX, _quiet
 
     rng = np.random.default_rng(4)
     u = rng.standard_normal(3000)
@@ -457,7 +457,17 @@ def test_a_validation_split_where_the_rig_stands_idle_is_not_called_useless(fold
     assert [(n.kind, n.split) for n in notes] == [("quiet", "validation"), ("ignores-input", "train")]
     line = summary_line(notes, "s.yaml", "mse1")
     assert line.startswith("this model is of little use: it ignores its input") and "barely moves" in line
+    # idle over the test split only: no carry-over from a validation that moves to a test that is noise
+    raw["data"]["split"] = {"train": 0.6, "validation": 0.2, "test": 0.2}
+    raw["model"] = {"family": "narx", "params": {"terms": ["1", "y[t-1]", "u[t-1]", "u[t-1]^3"]}}
+    spec = make_spec(raw, folder)
+    ds = load_dataset(spec)
+    model, runs = engine.fit_dataset(spec, ds)
+    test, validation = model.metrics["test"]["nmse"], model.metrics["validation"]["nmse"]
+    assert test >= CARRY_OVER_FLOOR and test >= CARRY_OVER_FACTOR * validation  # would be "does not carry over"
+    assert [(n.kind, n.split) for n in assess(model, ds, runs)] == [("quiet", "test")]
     assert _quiet(100.0, {}, np.array([1e-3]), "validation") is not None
+    assert _quiet(float("nan"), {}, np.array([1e-3]), "validation") is None
     assert _quiet(1e5, {}, np.array([1e-3]), "validation") is None  # 100 % of the training variance: poor
     assert _quiet(100.0, {}, np.array([0.02]), "validation") is None  # 14 % of the training spread: not quiet
 
