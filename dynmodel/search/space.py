@@ -39,8 +39,8 @@ class SearchContext:
     checks run from rest); 0 when no measured output may be used at all (every sample scored).
     ``excursion``: how far the validation and test inputs go beyond the training input range, as a
     fraction of its width (0 when they stay inside): a model will extrapolate there.
-    ``small``: the data are too short for a held-out validation split to rank candidates; the search
-    cross-validates in blocks (prefer few, robust candidates).
+    ``small``: a held-out validation split cannot rank the candidates (the data are too short for one, or its
+    output barely moves); the search cross-validates in blocks (prefer few, robust candidates).
     """
 
     input_names: tuple[str, ...]
