@@ -103,10 +103,16 @@ def variance_share(ds: Dataset, split: str, warmup: int = 0) -> np.ndarray | Non
     return var / var_train
 
 
+def is_quiet(share: np.ndarray | None) -> bool:
+    """Does every output move less than :data:`QUIET` of the training output (its standard deviation), given
+    :func:`variance_share`'s ``share``?"""
+    return share is not None and bool(np.all(share < QUIET**2))
+
+
 def _quiet(value: float, per: Mapping[str, Any], share: np.ndarray | None, split: str) -> Note | None:
-    """A ``quiet`` note when every output of ``split`` moves less than :data:`QUIET` of the training output and
-    the error, measured against the training output's variance, stays below :data:`POOR_NMSE`; else None."""
-    if share is None or not np.all(share < QUIET**2):
+    """A ``quiet`` note when ``split`` is quiet (:func:`is_quiet`, ``share``: :func:`variance_share`) and the
+    error, measured against the training output's variance, stays below :data:`POOR_NMSE`; else None."""
+    if share is None or not is_quiet(share):
         return None
     each = [entry.get("nmse") for entry in per.values()] if len(per) == len(share) > 1 else [value]
     if any(v is None for v in each):

@@ -361,10 +361,10 @@ def quiet_validation(ds: Dataset) -> str | None:
     """Why the validation split cannot rank, when its output barely moves (every output's standard deviation
     below :data:`~dynmodel.usefulness.QUIET` of the training output's: the rig idle, a sensor at rest): there a
     constant predicts the noise as well as any model; None otherwise."""
-    from ..usefulness import QUIET, variance_share
+    from ..usefulness import is_quiet, variance_share
 
     share = variance_share(ds, "validation")
-    if share is None or not np.all(share < QUIET**2):
+    if share is None or not is_quiet(share):
         return None
     return (
         f"the validation output barely moves (its standard deviation is {100 * np.sqrt(share.max()):.2g} % of the "
