@@ -412,8 +412,16 @@ class Family(ABC):
         return None
 
     def summary(self) -> dict[str, Any]:
-        """A few facts for `dynmodel inspect`."""
+        """A few facts for `dynmodel inspect`. The key ``parameters`` (optional), the number of values the fit
+        estimated from the data, is the model's size for ``family: auto``, which prefers the simpler of two models
+        that validate alike; without it the size is :meth:`stored_values`, which over-counts values drawn at
+        random and never fitted (an echo state network's reservoir)."""
         return {}
+
+    def stored_values(self) -> int:
+        """The number of floating-point values in the fitted model's arrays (:meth:`to_arrays`)."""
+        arrays, _ = self.to_arrays()
+        return int(sum(np.size(a) for a in arrays.values() if np.issubdtype(np.asarray(a).dtype, np.floating)))
 
     # -- extensions (dynmodel diagnose, family: auto; docs/plugins-extensions.md) ------------
     @classmethod

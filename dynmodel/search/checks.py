@@ -530,13 +530,12 @@ def failed_split(checks: dict[str, Any]) -> str | None:
 
 
 def complexity(model: FittedModel) -> float:
-    """The fitted model's size: ``summary()['parameters']`` when the family reports it, else the number of
-    floating-point values in its stored arrays."""
+    """The fitted model's size: ``summary()['parameters']`` (the values its fit estimated) when the family
+    reports it, else the number of floating-point values in its stored arrays."""
     try:
         reported = model.family.summary().get("parameters")
     except Exception:  # noqa: BLE001 - a summary is optional
         reported = None
     if isinstance(reported, (int, float)) and reported >= 0:
         return float(reported)
-    arrays, _ = model.family.to_arrays()
-    return float(sum(np.size(a) for a in arrays.values() if np.issubdtype(np.asarray(a).dtype, np.floating)))
+    return float(model.family.stored_values())

@@ -192,6 +192,8 @@ class AnnealedRnn(EchoStateNetwork):
 
     def summary(self) -> dict[str, Any]:
         info = super().summary()
+        # the annealing chose the connections, input weights, biases and relaxations too, not the readout alone
+        info["parameters"] = self.stored_values()
         search = getattr(self, "search_", None)
         if search:
             run = search["restarts"][search["best_run"]]

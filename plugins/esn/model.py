@@ -457,6 +457,8 @@ class EchoStateNetwork(Family):
             "readout": self.params.readout.solver,
         }
         info["readout terms"] = [int(len(s)) for s in self.selected_]
+        # fitted: the readout's nonzero weights and intercepts; the reservoir and input weights are drawn, not fitted
+        info["parameters"] = int(sum(len(s) for s in self.selected_) + np.size(self.w0_))
         if np.isfinite(self._clip[0]).any():
             info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(*self._clip)]
         if self.external:
