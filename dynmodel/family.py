@@ -412,16 +412,19 @@ class Family(ABC):
         return None
 
     def summary(self) -> dict[str, Any]:
-        """A few facts for `dynmodel inspect`. The key ``parameters`` (optional), the number of values the fit
-        estimated from the data, is the model's size for ``family: auto``, which prefers the simpler of two models
-        that validate alike; without it the size is :meth:`stored_values`, which over-counts values drawn at
-        random and never fitted (an echo state network's reservoir)."""
+        """A few facts for `dynmodel inspect`."""
         return {}
 
     def stored_values(self) -> int:
         """The number of floating-point values in the fitted model's arrays (:meth:`to_arrays`)."""
         arrays, _ = self.to_arrays()
         return int(sum(np.size(a) for a in arrays.values() if np.issubdtype(np.asarray(a).dtype, np.floating)))
+
+    def fitted_values(self) -> int:
+        """The number of values the fit estimated from the data: the model's size for ``family: auto``, which
+        prefers the simpler of two models that validate alike. Default :meth:`stored_values`; override it where
+        the arrays hold values drawn at random and never fitted (an echo state network's reservoir)."""
+        return self.stored_values()
 
     # -- extensions (dynmodel diagnose, family: auto; docs/plugins-extensions.md) ------------
     @classmethod

@@ -530,12 +530,9 @@ def failed_split(checks: dict[str, Any]) -> str | None:
 
 
 def complexity(model: FittedModel) -> float:
-    """The fitted model's size: ``summary()['parameters']`` (the values its fit estimated) when the family
-    reports it, else the number of floating-point values in its stored arrays."""
+    """The fitted model's size: the values its fit estimated (:meth:`Family.fitted_values`), else, when a
+    plugin's count fails, the floating-point values of its stored arrays."""
     try:
-        reported = model.family.summary().get("parameters")
-    except Exception:  # noqa: BLE001 - a summary is optional
-        reported = None
-    if isinstance(reported, (int, float)) and reported >= 0:
-        return float(reported)
-    return float(model.family.stored_values())
+        return float(model.family.fitted_values())
+    except Exception:  # noqa: BLE001 - a plugin's count must not stop the search
+        return float(model.family.stored_values())

@@ -190,10 +190,12 @@ class AnnealedRnn(EchoStateNetwork):
     #: fitted without one (the echo state network's hook, inherited otherwise, gives a refit that fails)
     frozen_config = Family.frozen_config
 
+    def fitted_values(self) -> int:
+        """Every stored value: the annealing chose the connections, input weights, biases and relaxations too."""
+        return self.stored_values()
+
     def summary(self) -> dict[str, Any]:
         info = super().summary()
-        # the annealing chose the connections, input weights, biases and relaxations too, not the readout alone
-        info["parameters"] = self.stored_values()
         search = getattr(self, "search_", None)
         if search:
             run = search["restarts"][search["best_run"]]

@@ -446,6 +446,10 @@ class EchoStateNetwork(Family):
             readout["max_terms"] = int(max(len(s) for s in self.selected_)) + 1
         return {"params": {**self._given, "readout": readout}, "cost": None}
 
+    def fitted_values(self) -> int:
+        """The readout's nonzero weights and intercepts: the reservoir and input weights are drawn, not fitted."""
+        return int(sum(len(s) for s in self.selected_) + np.size(self.w0_))
+
     def summary(self) -> dict[str, Any]:
         net = self.network_
         info: dict[str, Any] = {
@@ -457,8 +461,7 @@ class EchoStateNetwork(Family):
             "readout": self.params.readout.solver,
         }
         info["readout terms"] = [int(len(s)) for s in self.selected_]
-        # fitted: the readout's nonzero weights and intercepts; the reservoir and input weights are drawn, not fitted
-        info["parameters"] = int(sum(len(s) for s in self.selected_) + np.size(self.w0_))
+        info["parameters"] = self.fitted_values()
         if np.isfinite(self._clip[0]).any():
             info["bounds (model space)"] = [[float(a), float(b)] for a, b in zip(*self._clip)]
         if self.external:
