@@ -521,13 +521,44 @@ def test_a_full_fit_planned_beyond_the_budget_leaves_the_screening_fit_standing(
     assert stood and rec["winner"] in {c["key"] for c in stood}
     winner = next(c for c in stood if c["key"] == rec["winner"])
     assert winner["level"] == "final" and winner["levels"]["final"]["score"] == winner["levels"]["screen"]["score"]
-    assert any(n.startswith("not fitted in full, each fit alone planned beyond") for n in rec["notes"])
+    assert any(n.startswith("not fitted in full, each one's full fits planned beyond") for n in rec["notes"])
     assert any(n.startswith(f"the model is {winner['family']}: ") and "screening variant" in n for n in rec["notes"])
     assert model.spec["cost"] == "mse1"  # the screening variant (least-squares weights), as it was validated
     assert rec["seconds"] < 60
     from dynmodel.search.report import leaderboard
 
     assert leaderboard(rec)[0]["key"] == rec["winner"] and leaderboard(rec)[0]["level"] == "screened"  # marked *
+
+
+def test_a_random_candidate_s_full_fits_beyond_the_budget_stand_screened_over_its_seeds(tmp_path, monkeypatch):
+    """A random candidate is judged over several seeds, and its full fits (every seed) planned beyond what is left
+    of the allowance are not run either (200k samples with a budget of 20 s: the annealed default's full fits,
+    planned at 151 s, ran 196 s, and the search stopped at its safety limit): its screening fits of its other
+    seeds join the one it was screened with, filed as final fits, and the median over them is its score."""
+    import dynmodel.search.run as search_run
+
+    monkeypatch.setattr(search_run, "SCREEN_SAMPLES", 1000)  # screened on part of the 2520 training samples
+    planned = search_run.estimated_work
+
+    def full_fits_for_hours(cand, ctx, n_train=None, screening=False):
+        return planned(cand, ctx, n_train, screening) * (1.0 if screening else 1e5)
+
+    monkeypatch.setattr(search_run, "estimated_work", full_fits_for_hours)
+    _data(tmp_path)
+    model, _ = _fit(_raw(families=["esn"], budget=30, seeds=3), tmp_path)
+    rec = model.search
+    assert rec["mode"] == "holdout" and not rec["safety_limit"] and rec["seconds"] < 60
+    stood = [c for c in rec["candidates"] if c.get("stands_screened")]
+    assert stood and rec["winner"] in {c["key"] for c in stood}
+    for c in stood:
+        seeds = c["levels"]["final"]["seeds"]
+        assert len(seeds) == 3 and set(c["levels"]["screen"]["seeds"]) < set(seeds)  # its screening seed and two more
+        assert c["levels"]["final"]["score"] == pytest.approx(float(np.median([v for v in seeds.values()])))
+    assert any("; a random family's over 3 seeds) stand as their final ones" in n for n in rec["notes"])
+    assert any(
+        "in its screening variant on the last 1000 training samples, as it was validated" in n for n in rec["notes"]
+    )
+    assert model.metrics["validation"]["nmse"] < 5
 
 
 @pytest.mark.slow

@@ -136,9 +136,9 @@ class Entry:
     #: the screening fits count as final fits (same variant, same layouts): a deterministic candidate needs
     #: no refit, a random one only its other seeds
     reuse_screen: bool = False
-    #: on a hold-out, its full fit alone was planned beyond what was left of the budget (this many seconds of
-    #: work, 0: it was not): its screening fit (the cheap variant on the screening samples, validated as every
-    #: final fit is) stands as its final one
+    #: its full fits were planned beyond what was left of the budget (this many seconds of work, 0: they were
+    #: not): its screening fit (the cheap variant on the screening samples, validated as every final fit is)
+    #: stands as its final one; a random candidate's screening fits of its other seeds join it as final fits
     full_work_skipped: float = 0.0
 
     @property
@@ -550,8 +550,11 @@ class Search:
             return int((self.ctx.n_train + self.ctx.n_validation) * (layout.folds - 1) / layout.folds)
         return self.ctx.n_train
 
-    def _group(self, entry: Entry, level: str, seeds: list[int]) -> Group:
-        screening = level == "screen"
+    def _group(self, entry: Entry, level: str, seeds: list[int], screening: bool | None = None) -> Group:
+        """The fits of ``entry`` at ``level`` for ``seeds``: its screening variant on the screening layouts at the
+        screening level (or when ``screening`` says so: a random candidate that stands screened, whose other seeds
+        are filed as final fits), else the full variant on the final layouts."""
+        screening = level == "screen" if screening is None else screening
         layouts = self.screen_layouts if screening else self.final_layouts
         tasks, work = [], 0.0
         for seed in seeds:
@@ -667,7 +670,7 @@ class Search:
         complete = not entry.random or len(entry.summaries["screen" if level == "screen" else level].seeds) >= (
             self.params.seeds
         )
-        if entry.reuse_screen and (level == "final" or complete):
+        if (entry.reuse_screen or entry.stands_screened) and (level == "final" or complete):
             entry.summarize_final()
 
     def _screen_is_final(self, cand: Candidate) -> bool:
@@ -926,23 +929,38 @@ class Search:
 
     def _affordable(self, groups: list[Group]) -> list[Group]:
         """The full fits the budget can still take. A candidate whose full fits (every fold) are planned beyond
-        all that is left of the allowance is not fitted in full, even as a stage's first: a deterministic
-        candidate's screening fits then stand as its final ones (the cheap variant on the screening samples,
-        validated on the same hold-out, folds or recordings left out), with a note; chosen, it is the model as
-        it was validated (on a hold-out that fit itself, otherwise its screening variant fitted on the
-        screening samples of the whole training split). On a generated Wiener-Hammerstein system of 100k
-        samples the leader's full fit (degree 3, lags up to 11, a pool of 2600 monomials) was planned at 1976 s
-        of the 600 s allowance and took 876 s alone: the search took 905 s for a budget of 300 s; on three
-        recordings of 50k samples its three folds, planned at 2975 s, ran into the safety limit (1022 s)."""
+        all that is left of the allowance is not fitted in full, even as a stage's first: its screening fits then
+        stand as its final ones (the cheap variant on the screening samples, validated on the same hold-out,
+        folds or recordings left out; a random candidate's over all its seeds, the others fitted now), with a
+        note; chosen, it is the model as it was validated (on a hold-out that fit itself, its median seed's for a
+        random one, otherwise its screening variant fitted on the screening samples of the whole training split).
+        On a generated Wiener-Hammerstein system of 100k samples the leader's full fit (degree 3, lags up to 11, a
+        pool of 2600 monomials) was planned at 1976 s of the 600 s allowance and took 876 s alone: the search took
+        905 s for a budget of 300 s; on three recordings of 50k samples its three folds, planned at 2975 s, ran
+        into the safety limit (1022 s)."""
         room = self.budget.allowance - self.budget.planned
         kept, skipped = [], []
+        randoms = False
         for g in groups:
             e = self.entries[g.key.split("|")[0]]
             screen = e.summaries.get("screen")
             usable = screen is not None and screen.finite and screen.ok
             work = g.work * self._rework(e) if usable and not e.random else g.work
-            if work <= room or e.random or not usable:
+            if work <= room or not usable:
                 kept.append(g)
+                continue
+            if e.random:
+                # judged over several seeds all the same: its screening fit of one seed is joined by the
+                # screening fits of its other seeds, filed as final ones (the median is taken over them all)
+                done = {int(r.seed or 0) for r in e.results.get("screen", [])}
+                seeds = [s for s in self.seeds_of(e, self.params.seeds) if s not in done]
+                e.full_work_skipped = work
+                randoms = True
+                if seeds:
+                    kept.append(self._group(e, "final", seeds, screening=True))
+                else:
+                    e.summarize_final()
+                skipped.append(e.label)
                 continue
             e.full_work_skipped = work
             e.summarize_final()
@@ -952,9 +970,11 @@ class Search:
             where = f"on the last {samples} training samples" if samples else "on the training split"
             named = "; ".join(skipped[:3]) + (f"; and {len(skipped) - 3} more" if len(skipped) > 3 else "")
             self.notes.append(
-                f"not fitted in full, each fit alone planned beyond the {max(room, 0.0):.0f} s of work left of the "
-                f"{self.budget.allowance:.0f} s a budget of {self.budget.seconds:g} s allows ({REFERENCE_WORKERS} "
-                f"workers' worth): {named}; their screening fits (the cheap variant, {where}) stand as their final ones"
+                f"not fitted in full, each one's full fits planned beyond the {max(room, 0.0):.0f} s of work left of "
+                f"the {self.budget.allowance:.0f} s a budget of {self.budget.seconds:g} s allows ({REFERENCE_WORKERS} "
+                f"workers' worth): {named}; their screening fits (the cheap variant, {where}"
+                + (f"; a random family's over {self.params.seeds} seeds" if randoms else "")
+                + ") stand as their final ones"
             )
         return kept
 
