@@ -877,13 +877,15 @@ class Search:
         groups = []
         for k in keys:
             e = self.entries[k]
-            seeds = self.seeds_of(e, self.params.seeds)
-            if e.reuse_screen:  # only the seeds the screening did not fit
-                done = {int(r.seed or 0) for r in e.results.get("screen", [])}
-                seeds = [s for s in seeds if s not in done]
+            seeds = self._unscreened_seeds(e) if e.reuse_screen else self.seeds_of(e, self.params.seeds)
             if seeds:
                 groups.append(self._group(e, "final", seeds))
         return self._affordable(groups)
+
+    def _unscreened_seeds(self, e: Entry) -> list[int]:
+        """The seeds of ``e`` its screening did not fit (the others when its screening fits count as final)."""
+        done = {int(r.seed or 0) for r in e.results.get("screen", [])}
+        return [s for s in self.seeds_of(e, self.params.seeds) if s not in done]
 
     def _stage_full(self, keys: list[str]) -> None:
         groups = self._final_groups(keys)
@@ -949,22 +951,16 @@ class Search:
             if work <= room or not usable:
                 kept.append(g)
                 continue
-            if e.random:
-                # judged over several seeds all the same: its screening fit of one seed is joined by the
-                # screening fits of its other seeds, filed as final ones (the median is taken over them all)
-                done = {int(r.seed or 0) for r in e.results.get("screen", [])}
-                seeds = [s for s in self.seeds_of(e, self.params.seeds) if s not in done]
-                e.full_work_skipped = work
-                randoms = True
-                if seeds:
-                    kept.append(self._group(e, "final", seeds, screening=True))
-                else:
-                    e.summarize_final()
-                skipped.append(e.label)
-                continue
             e.full_work_skipped = work
-            e.summarize_final()
             skipped.append(e.label)
+            # a random candidate is judged over several seeds all the same: its screening fit of one seed is
+            # joined by the screening fits of its other seeds, filed as final ones (the median is over them all)
+            seeds = self._unscreened_seeds(e) if e.random else []
+            randoms = randoms or e.random
+            if seeds:
+                kept.append(self._group(e, "final", seeds, screening=True))
+            else:
+                e.summarize_final()
         if skipped:
             samples = self.screen_layouts[0].samples
             where = f"on the last {samples} training samples" if samples else "on the training split"
