@@ -24,19 +24,12 @@ if TYPE_CHECKING:
     from .spec import Spec
 
 
-def allowed_warmup(ds: Dataset) -> dict[str, int]:
-    """Per validation / test split with a protocol: the measured output samples a run may use."""
-    allowed = {key: 0 for key in ds.score_all}
-    allowed.update({key: w for key, w in ds.windows.items() if key not in ds.score_all})
-    return allowed
-
-
 def check_warmup(family: Any, ds: Dataset, source: str) -> None:
     """Raise a one-line SpecError when ``family`` needs more measured outputs than a split's protocol allows."""
     need = int(family.warmup)
     if need <= 0:
         return
-    for key, allowed in allowed_warmup(ds).items():
+    for key, allowed in ds.allowed_warmup().items():
         if need > allowed:
             rule = (
                 "scores every sample, so no measured output may be used"

@@ -165,6 +165,12 @@ class Dataset:
     #: spikes and clipping found in the measured outputs when loaded (:func:`.artifacts.find_artifacts`)
     artifacts: list[Artifact] = field(default_factory=list)
 
+    def allowed_warmup(self) -> dict[str, int]:
+        """Per validation / test split with a protocol: the measured output samples a run may use."""
+        allowed = {key: 0 for key in self.score_all}
+        allowed.update({key: w for key, w in self.windows.items() if key not in self.score_all})
+        return allowed
+
     def splits(self) -> list[str]:
         """Split keys with samples: train, validation, then the test sets in the spec's order."""
         fixed = [s for s in ("train", "validation") if self.ranges.get(s)]

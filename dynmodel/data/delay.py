@@ -33,6 +33,9 @@ MAX_DELAY = 100
 GAIN = 0.1
 #: dead times shorter than this are not reported (the default lags reach them)
 MIN_DELAY = 3
+#: training samples (the last ones) the dead times are read on by the search and the narx default (six inputs
+#: and outputs: about 1 s)
+READ_ON = 50000
 #: output lags and input taps of the ARX model
 NA, NB = 2, 3
 

@@ -38,6 +38,10 @@ class TrainingData:
     #: physical output = model output * output_scale + output_offset (to convert user-given values)
     output_offset: np.ndarray | None = None
     output_scale: np.ndarray | None = None
+    #: the most measured outputs a run may start from on a split with a protocol (its initialization window;
+    #: 0 where every sample is scored), None without one: a family that chooses its tune-in on the data keeps
+    #: within it
+    warmup_limit: int | None = None
 
     def to_model_outputs(self, values: np.ndarray) -> np.ndarray:
         """Physical output values (per output column) in model space."""
@@ -96,4 +100,5 @@ def training_data(ds: Dataset, pre: Preprocessor) -> TrainingData:
         ds.sampling_time,
         np.asarray(pre.output_offset, dtype=np.float64),
         np.asarray(pre.output_scale, dtype=np.float64),
+        min(ds.allowed_warmup().values(), default=None),
     )

@@ -37,7 +37,7 @@ import numpy as np
 from .. import registry
 from ..batch import run_specs
 from ..data.dataset import Dataset, is_test, last_samples
-from ..data.delay import dead_times
+from ..data.delay import READ_ON, dead_times
 from ..data.derived import position_like
 from ..data.repeats import repeat_note, repeats_training
 from ..errors import DynmodelError, interruption
@@ -99,8 +99,6 @@ SECOND_CHANCES = 2
 FORGETTING = 2
 #: candidates whose neighbours are measured
 GROW_FROM = 2
-#: training samples (the last ones) the inputs' dead times are read on (six inputs and outputs: about 1 s)
-DEAD_TIME_SAMPLES = 50000
 #: a linear model (the reference, or a candidate affine in its input) within this factor of the best score shows
 #: a system about linear (:meth:`Search._decide_band`; on EMPS, Silverbox and Bouc-Wen the reference is 53 to
 #: 860 x behind and no candidate is affine)
@@ -303,9 +301,7 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
     in turn (:func:`.views.phase_fold`, fold layouts with a ``period``); 'holdout': the spec's own validation
     split."""
     n_train, n_val = ds.n_scored("train"), ds.n_scored("validation") if ds.ranges.get("validation") else 0
-    from ..protocol import allowed_warmup
-
-    limits = list(allowed_warmup(ds).values())
+    limits = list(ds.allowed_warmup().values())
     max_warmup = min(limits) if limits else None
     excursions = ds.input_excursions()
     excursion = max((e["excess"] for e in excursions), default=0.0)
@@ -411,8 +407,8 @@ def _signed(pieces: list[np.ndarray], names: list[str], positions: dict[str, flo
 
 def _dead_times(ds: Dataset) -> dict[str, int]:
     """The training inputs that act on an output only after a dead time, in samples (read on the last
-    :data:`DEAD_TIME_SAMPLES` training samples: a fit per delay, input and output)."""
-    rows = last_samples(ds.ranges.get("train", []), DEAD_TIME_SAMPLES)
+    :data:`READ_ON` training samples: a fit per delay, input and output)."""
+    rows = last_samples(ds.ranges.get("train", []), READ_ON)
     if not rows:
         return {}
     u = [ds.recordings[rec].u[start:stop] for rec, start, stop in rows]

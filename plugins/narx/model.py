@@ -18,12 +18,23 @@ from typing import Any, Literal
 
 import numpy as np
 
+from dynmodel.data.dataset import last_samples
+from dynmodel.data.delay import READ_ON, dead_times
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
 
 from . import orders
 from . import pool as pool_mod
-from .embedding import DEFAULT_MAX_LAG, Embedding, Regressor, build_embedding, exponents_of, parse_term, term_label
+from .embedding import (
+    DEFAULT_MAX_LAG,
+    Embedding,
+    Regressor,
+    build_embedding,
+    default_lag_table,
+    exponents_of,
+    parse_term,
+    term_label,
+)
 from .estimation import (
     FreeRunProblem,
     Scored,
@@ -296,40 +307,66 @@ class Narx(Family):
     ) -> tuple[list[dict[str, Any]], list[Callable[[], dict[str, Any]]]]:
         """``lags: null`` / ``degree: null``: FOS on every sub-pool (lags <= L, degree <= d) of the
         largest pool's Gram matrix, each stopped by its free-run validation error (see :mod:`.orders`).
+        With ``lags: null``, where an input acts only after a dead time (:meth:`_dead_times`), the sub-pools of
+        the default table with that input's lags starting there (:meth:`_after_dead_times`) compete too: lags
+        0 .. 6 never reach an input that acts 25 samples later.
         Returns the finalists (per degree the lags whose least-squares model validates best, each
         written on its own embedding, best first) and the reserves: up to ``_RESERVES`` other (lags,
         degree) pairs in the order of their least-squares validation error, each written when called
         (fitted only when every finalist fails, see :meth:`_fit_finalists`)."""
         p = self.params
-        emb = self.embedding_
-        E = make_pool(emb, p)
-        progress("pool", None, f"Gram matrix of {E.shape[0]} monomials on {train.n} patterns")
-        G, C = pool_mod.gram(train.X, train.Y, E)
-        lag_values: list[int | None] = list(range(1, emb.max_lag + 1)) if p.lags is None else [None]
+        tables: list[tuple[Embedding, pool_mod.Patterns, pool_mod.Patterns, dict[str, int]]] = [
+            (self.embedding_, train, val, {})
+        ]
+        delays = self._dead_times(data) if p.lags is None else {}
+        if delays:
+            shifted = self._after_dead_times(data, delays)
+            if shifted is not None:
+                shifted_train, shifted_val = self._patterns_of(data, shifted)
+                if shifted_val is not None and shifted_train.n > shifted.size:
+                    tables.append((shifted, shifted_train, shifted_val, delays))
         degrees = [p.degree] if p.degree is not None else list(range(1, p.max_degree + 1))
-        stability, error = self._stability_check(data), self._free_run_error(data)
         tried: list[dict[str, Any]] = []
-        found_all: list[tuple[float, orders.Candidate, tuple]] = []
-        for cand in orders.candidates(emb, E, lag_values, degrees):
-            where = f"lags {cand.lag if cand.lag is not None else 'as given'}, degree {cand.degree}"
-
-            def step(stage: str, fraction: float | None, message: str, where: str = where) -> None:
-                progress("orders", None, f"{where}: {message}")
-
-            sub = cand.rows
-            found = fos_structure(
-                E[sub], train, val, p, self.output_names_, stability, step, error, (G[np.ix_(sub, sub)], C[sub])
+        found_all: list[tuple[float, orders.Candidate, tuple, Embedding, dict[str, int]]] = []
+        for emb, emb_train, emb_val, dead in tables:
+            self.embedding_ = emb  # the closures below run its polynomials, from its tune-in
+            E = make_pool(emb, p)
+            progress("pool", None, f"Gram matrix of {E.shape[0]} monomials on {emb_train.n} patterns")
+            G, C = pool_mod.gram(emb_train.X, emb_train.Y, E)
+            lag_values: list[int | None] = (
+                list(range(1, int(orders.memory_lags(emb).max()) + 1)) if p.lags is None else [None]
             )
-            err = orders.score(found[3])
-            tried.append(
-                {
-                    "lags": cand.lag,
-                    "degree": cand.degree,
-                    "terms": found[3]["terms"],
-                    "validation_free_run_nmse": None if not np.isfinite(err) else err,
-                }
-            )
-            found_all.append((err, cand, found))
+            stability, error = self._stability_check(data), self._free_run_error(data)
+            after = f", inputs from their dead times {dead}" if dead else ""
+            for cand in orders.candidates(emb, E, lag_values, degrees):
+                where = f"lags {cand.lag if cand.lag is not None else 'as given'}{after}, degree {cand.degree}"
+
+                def step(stage: str, fraction: float | None, message: str, where: str = where) -> None:
+                    progress("orders", None, f"{where}: {message}")
+
+                sub = cand.rows
+                found = fos_structure(
+                    E[sub],
+                    emb_train,
+                    emb_val,
+                    p,
+                    self.output_names_,
+                    stability,
+                    step,
+                    error,
+                    (G[np.ix_(sub, sub)], C[sub]),
+                )
+                err = orders.score(found[3])
+                tried.append(
+                    {
+                        "lags": cand.lag,
+                        **({"dead_times": dict(dead)} if dead else {}),
+                        "degree": cand.degree,
+                        "terms": found[3]["terms"],
+                        "validation_free_run_nmse": None if not np.isfinite(err) else err,
+                    }
+                )
+                found_all.append((err, cand, found, emb, dead))
         ranked = sorted(found_all, key=lambda f: f[0])  # stable: ties keep the smaller pool first
         best: dict[int, tuple] = {}
         for entry in ranked:
@@ -339,10 +376,11 @@ class Narx(Family):
         reserves = [r for r in ranked if np.isfinite(r[0]) and all(r is not h for h in heads)][:_RESERVES]
 
         def written(entry: tuple) -> dict[str, Any]:
-            err, cand, (exps, outs, weights, info) = entry
-            info = {**info, "lags": cand.lag, "degree": cand.degree, "search": tried}
+            err, cand, (exps, outs, weights, info), emb, dead = entry
+            info = {**info, "lags": cand.lag, **({"dead_times": dict(dead)} if dead else {}), "degree": cand.degree}
+            info["search"] = tried
             small = emb
-            if cand.lag is not None and cand.lag < emb.max_lag:
+            if cand.lag is not None and cand.lag < int(orders.memory_lags(emb).max()):
                 small = build_embedding(orders.lag_tables(emb, cand.lag), data.input_names, data.output_names)
                 exps = orders.remap(exps, emb, small)
                 if p.weights == "lstsq":  # the smaller embedding drops fewer patterns at recording starts
@@ -357,6 +395,39 @@ class Narx(Family):
             }
 
         return [written(h) for h in heads], [functools.partial(written, r) for r in reserves]
+
+    def _dead_times(self, data: TrainingData) -> dict[str, int]:
+        """The inputs that act on an output only after a dead time of at least ``MIN_DELAY`` samples, read on the
+        last ``READ_ON`` training samples (:func:`dynmodel.data.delay.dead_times`)."""
+        if not self.n_inputs_:
+            return {}
+        rows = last_samples(data.segments.get("train", []), READ_ON)
+        u = [data.series[i].u[a:b] for i, a, b in rows]
+        y = [data.series[i].y[a:b] for i, a, b in rows]
+        return dead_times(u, y, data.input_names) if rows else {}
+
+    def _after_dead_times(self, data: TrainingData, delays: dict[str, int]) -> Embedding | None:
+        """The default table with each input's lags starting at its dead time (inputs d .. d + L, outputs
+        1 .. L), or None when its tune-in (d + L measured outputs) is longer than a protocol allows."""
+        p = self.params
+        table = default_lag_table(
+            data.input_names, data.output_names, p.max_degree, p.constant, p.input_terms == "linear"
+        )
+        for name, d in delays.items():
+            table[name] = [lag + d for lag in table[name]]
+        emb = build_embedding(
+            table, data.input_names, data.output_names, (), p.max_degree, p.constant, p.input_terms == "linear"
+        )
+        limit = data.warmup_limit
+        if p.initial == "measured" and limit is not None and emb.max_lag > limit:
+            return None
+        return emb
+
+    def _patterns_of(self, data: TrainingData, emb: Embedding) -> tuple[pool_mod.Patterns, pool_mod.Patterns | None]:
+        """The training and validation patterns of ``emb`` (None: no validation pattern)."""
+        train = self._patterns(data, emb, "train")
+        val = self._patterns(data, emb, "validation")
+        return train, (val if val.n else None)
 
     def _patterns(self, data: TrainingData, emb: Embedding, split: str) -> pool_mod.Patterns:
         first = emb.max_lag if self.params.start == "drop" else 0

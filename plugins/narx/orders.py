@@ -30,9 +30,21 @@ class Candidate:
     rows: np.ndarray  # indices of its monomials in the large pool (the constant first)
 
 
+def memory_lags(emb: Embedding) -> np.ndarray:
+    """Each regressor's lag counted from its column's first one (inputs from 0, outputs from 1): its lag, on the
+    default table; on a table whose input starts at its dead time d, input lags d .. d + L count as 0 .. L."""
+    first: dict[tuple[int, int], int] = {}
+    for r in emb.regressors:
+        first[(r.source, r.channel)] = min(first.get((r.source, r.channel), r.lag), r.lag)
+    return np.array(
+        [r.lag - first[(r.source, r.channel)] + (1 if r.source == OUTPUT else 0) for r in emb.regressors],
+        dtype=np.int64,
+    )
+
+
 def candidates(emb: Embedding, E: np.ndarray, lags: list[int | None], degrees: list[int]) -> list[Candidate]:
-    """Every (L, d) of the search, smallest first, as rows of the large pool E."""
-    _, _, reg_lag = emb.arrays()
+    """Every (L, d) of the search, smallest first, as rows of the large pool E (L on :func:`memory_lags`)."""
+    reg_lag = memory_lags(emb)
     total = E.sum(axis=1)
     out = []
     for L in lags:
@@ -45,10 +57,11 @@ def candidates(emb: Embedding, E: np.ndarray, lags: list[int | None], degrees: l
 
 
 def lag_tables(emb: Embedding, lag: int) -> dict[str, list[int]]:
-    """The lag table of the embedding restricted to lags <= ``lag`` (every column keeps its lags up to it)."""
+    """The lag table of the embedding restricted to :func:`memory_lags` <= ``lag`` (every column keeps its lags
+    up to it)."""
     table: dict[str, list[int]] = {}
-    for r in emb.regressors:
-        if r.lag <= lag:
+    for r, m in zip(emb.regressors, memory_lags(emb)):
+        if m <= lag:
             table.setdefault(r.name, []).append(r.lag)
     return table
 

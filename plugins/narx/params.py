@@ -81,7 +81,9 @@ class NarxFamilyParams(FamilyParams):
         description="regressors per data column: {name: [lags]}, a lag being an integer or {from, to, step} "
         "(ends included); inputs may use lag 0, outputs start at 1. null (default): every input 0 .. L, every "
         "output 1 .. L, with L chosen on the free-running validation error among 1 .. L_max, L_max the largest "
-        "of 6 .. 1 whose pool holds at most 600 monomials (6 for one input and one output at degree 3)",
+        "of 6 .. 1 whose pool holds at most 600 monomials (6 for one input and one output at degree 3); where the "
+        "training data show an input acting only after a dead time d >= 3, the same tables with that input at "
+        "d .. d + L compete too",
     )
     degree: Optional[int] = Field(
         None,
