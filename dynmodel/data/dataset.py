@@ -171,6 +171,10 @@ class Dataset:
         allowed.update({key: w for key, w in self.windows.items() if key not in self.score_all})
         return allowed
 
+    def warmup_limit(self) -> int | None:
+        """The fewest measured outputs any protocol split lets a run start from (None: no protocol)."""
+        return min(self.allowed_warmup().values(), default=None)
+
     def splits(self) -> list[str]:
         """Split keys with samples: train, validation, then the test sets in the spec's order."""
         fixed = [s for s in ("train", "validation") if self.ranges.get(s)]

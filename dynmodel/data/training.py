@@ -100,5 +100,5 @@ def training_data(ds: Dataset, pre: Preprocessor) -> TrainingData:
         ds.sampling_time,
         np.asarray(pre.output_offset, dtype=np.float64),
         np.asarray(pre.output_scale, dtype=np.float64),
-        min(ds.allowed_warmup().values(), default=None),
+        ds.warmup_limit(),
     )

@@ -301,8 +301,7 @@ def context(spec: Spec, ds: Dataset, params: AutoParams, written_cost: str | Non
     in turn (:func:`.views.phase_fold`, fold layouts with a ``period``); 'holdout': the spec's own validation
     split."""
     n_train, n_val = ds.n_scored("train"), ds.n_scored("validation") if ds.ranges.get("validation") else 0
-    limits = list(ds.allowed_warmup().values())
-    max_warmup = min(limits) if limits else None
+    max_warmup = ds.warmup_limit()
     excursions = ds.input_excursions()
     excursion = max((e["excess"] for e in excursions), default=0.0)
     short = None

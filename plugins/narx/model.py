@@ -232,17 +232,12 @@ class Narx(Family):
             p.input_terms == "linear",
         )
         emb = self.embedding_
-        first = emb.max_lag if p.start == "drop" else 0
-        mats = pool_mod.regressor_matrices(data, emb)
-        train = pool_mod.patterns(data, mats, "train", first)
+        train, val = self._patterns_of(data, emb)
         if train.n <= emb.size:
             raise ValueError(
                 f"only {train.n} training patterns with known regressors (largest lag {emb.max_lag}); "
                 "provide more training data or use shorter lags"
             )
-        val = pool_mod.patterns(data, mats, "validation", first) if data.has("validation") else None
-        if val is not None and val.n == 0:
-            val = None
         self._bounds = data.output_bounds()
         self._set_clip(data, train.Y)
 
@@ -425,9 +420,11 @@ class Narx(Family):
 
     def _patterns_of(self, data: TrainingData, emb: Embedding) -> tuple[pool_mod.Patterns, pool_mod.Patterns | None]:
         """The training and validation patterns of ``emb`` (None: no validation pattern)."""
-        train = self._patterns(data, emb, "train")
-        val = self._patterns(data, emb, "validation")
-        return train, (val if val.n else None)
+        first = emb.max_lag if self.params.start == "drop" else 0
+        mats = pool_mod.regressor_matrices(data, emb)
+        train = pool_mod.patterns(data, mats, "train", first)
+        val = pool_mod.patterns(data, mats, "validation", first) if data.has("validation") else None
+        return train, (val if val is not None and val.n else None)
 
     def _patterns(self, data: TrainingData, emb: Embedding, split: str) -> pool_mod.Patterns:
         first = emb.max_lag if self.params.start == "drop" else 0
