@@ -24,6 +24,7 @@ from sweep_plugin import AffineArrays
 import dynmodel
 from dynmodel import engine, registry, store
 from dynmodel.data import load_dataset
+from dynmodel.diagnose import runner as diagnose_runner
 from dynmodel.errors import SpecError
 from dynmodel.family import Family, FamilyParams, Simulation, no_progress
 from dynmodel.search import search_options
@@ -618,6 +619,69 @@ def test_the_free_run_growth_is_bounded_by_a_share_of_the_budget():
     # per sample of the window: a longer record grows on the same window; four times the budget, four times the count
     assert grown[300.0, 3200] == pytest.approx(grown[300.0, 80000] * narx_search.GROWTH_WINDOW / 3200, 1e-3)
     assert grown[1200.0, 80000] == pytest.approx(4 * grown[300.0, 80000], 1e-3)
+
+
+def test_the_diagnosis_of_the_leader_plans_itself_again_from_the_fitted_size(tmp_path, monkeypatch):
+    """The moves' diagnosis is planned from the leader's estimate, before its fit says how large it is (a generated
+    system's: 17.7 s planned, 371 terms fitted, 210 s taken). Fitted, the leader's family estimates its fit again
+    (the ``full_work`` hook) and the diagnosis counts three such fits, once per reference worker (it runs alone).
+    Beyond the work the search left it, the detectors are left out, the result says so and keeps the fit's
+    metrics; within it, they run."""
+    from dynmodel.search.plan import REFERENCE_WORKERS, diagnosis_work
+    from dynmodel.search.space import Found, SearchContext
+    from dynmodel.search.worker import Task, run_task
+    from dynmodel.search.worker import diagnosis_work as replanned
+
+    detected: list[int] = []
+    detect = diagnose_runner.detect
+    monkeypatch.setattr(diagnose_runner, "detect", lambda *a, **k: detected.append(1) or detect(*a, **k))
+    _data(tmp_path)
+    raw = {**_raw(), "model": {"family": "narx", "params": {"lags": {"u": [0, 1, 2], "y": [1, 2]}, "degree": 2}}}
+    raw["cost"] = "mse_inf"
+    cand = Candidate(family="narx", params=raw["model"]["params"], summary="x", cost="mse_inf", work=0.01)
+    ctx = SearchContext(("u",), ("y",), 1.0, n_train=2880, n_validation=720, data={})
+    fitted = engine.fit_dataset(validate_spec(raw, "<t>", tmp_path), load_dataset(validate_spec(raw, "<t>", tmp_path)))
+    fit = narx_search.full_work(ctx, Found(cand, fitted[0].family, {}, 1.0))
+    assert fit is not None and fit > 0
+    need = diagnosis_work(fit, 2880)
+    assert need == pytest.approx(REFERENCE_WORKERS * (3 * fit + 1e-4 * 2880))
+    base = Task("d", raw, tmp_path, "<t>", kind="diagnose", layout=Layout("full"), candidate=cand, context=ctx)
+    assert replanned(base, fitted[0].family) == pytest.approx(need)
+    left_out = run_task(Task(**{**base.__dict__, "allowance": 0.5 * need}))
+    assert left_out.status == "ok" and left_out.proposals == []
+    assert "the diagnosis of the leader was left out" in (left_out.message or "")
+    assert left_out.score is not None and left_out.score == pytest.approx(fitted[0].metrics["validation"]["nmse"])
+    assert detected == []
+    within = run_task(Task(**{**base.__dict__, "allowance": 2 * need}))
+    assert within.status == "ok" and within.message is None and detected == [1]
+
+
+def test_the_diagnosis_takes_the_search_s_own_fit_of_the_leader(tmp_path, monkeypatch):
+    """On a held-out validation split the search has fitted the leader's spec on the very layout the diagnosis
+    fits it on: the diagnosis takes that model (its arrays, as the search keeps them) and fits only the detectors'
+    refits, and it diagnoses the same model: the same score and the same proposals as when it fits the spec."""
+    from dynmodel.search.worker import Task, run_task
+
+    _data(tmp_path)
+    raw = {**_raw(), "model": {"family": "narx", "params": {"lags": {"u": [0, 1], "y": [1]}, "degree": 1}}}
+    raw["cost"] = "mse_inf"
+    fit = run_task(Task("f", raw, tmp_path, "<t>", layout=Layout("full")), keep_model=True)
+    assert fit.status == "ok" and fit.model is not None
+    fit.model.train_input = fit.model.train_input_lengths = fit.model.train_output = None  # as the search keeps it
+    fitted: list[dict] = []
+    fit_dataset = engine.fit_dataset
+    monkeypatch.setattr(
+        engine, "fit_dataset", lambda spec, *a, **k: fitted.append(spec.model.params) or fit_dataset(spec, *a, **k)
+    )
+    base = Task("d", raw, tmp_path, "<t>", kind="diagnose", layout=Layout("full"))
+    fresh = run_task(base)
+    leader_fits = len([p for p in fitted if p == fitted[0]])
+    fitted.clear()
+    taken = run_task(Task(**{**base.__dict__, "model": fit.model}))
+    assert fresh.status == taken.status == "ok"
+    assert taken.score == fresh.score == fit.metrics["validation"]["nmse"]
+    assert taken.proposals == fresh.proposals and fresh.proposals  # a first-order model of a second-order system
+    assert len([p for p in fitted if p == raw["model"]["params"]]) == leader_fits - 1
 
 
 @pytest.mark.slow

@@ -35,6 +35,18 @@ HARD_LIMIT = 3.0
 HARD_SLACK = 120.0
 #: planned seconds of a task besides the fit itself (data views, the checks' free runs, transfers)
 TASK_OVERHEAD = 0.05
+#: a diagnosis of the leader (one task: its fit, then the detectors' refits, a longer selection among them) in
+#: fits of the leader
+DIAGNOSIS_FITS = 3.0
+#: ... and per training sample (the detectors' own statistics)
+DIAGNOSIS_PER_SAMPLE = 1e-4
+
+
+def diagnosis_work(fit: float, n_train: int) -> float:
+    """Planned seconds of a diagnosis of a model whose fit takes ``fit`` seconds on ``n_train`` training samples.
+    The diagnosis runs alone, one task that keeps the other reference workers idle, so its work counts once per
+    reference worker: the plan is of wall time (a stage of many tasks takes its work / REFERENCE_WORKERS)."""
+    return REFERENCE_WORKERS * (DIAGNOSIS_FITS * fit + DIAGNOSIS_PER_SAMPLE * n_train)
 
 
 @dataclass
