@@ -9,11 +9,10 @@ handling of dead workers. Three kinds:
   dependence and size;
 * ``reference``: the training mean and the linear ARX / OE reference of :mod:`dynmodel.diagnose.reference`
   on the view (training and validation samples only);
-* ``diagnose``: fit the spec on the view (or take the search's fit of it there) and run every detector of
-  ``dynmodel diagnose`` on it; the
-  result holds the extensions they propose (the search's moves). The diagnosis plans itself again once the
-  fit says how large the model is (:func:`diagnosis_work`): beyond the work the search left it, the
-  detectors are left out and the result says so.
+* ``diagnose``: fit the spec on the view (or take the search's own fit of it there) and run every detector of
+  ``dynmodel diagnose`` on it; the result holds the extensions they propose (the search's moves). The
+  diagnosis plans itself again once the fit says how large the model is (:func:`diagnosis_work`): beyond the
+  work the search left it, the detectors are left out and the result says so.
 
 Every task is a deterministic function of its fields: the result does not depend on the worker.
 """
@@ -349,8 +348,8 @@ def diagnosis_work(task: Task, fitted: Any) -> float | None:
     """Planned seconds of a diagnosis of ``fitted`` (the leader's spec fitted on the task's view), as the search
     plans it (:func:`dynmodel.search.plan.diagnosis_work`) from the fit's seconds its family now gives knowing the
     fitted model's size (the ``full_work`` hook); None when the family gives none. On a generated system the
-    leader's estimate planned the diagnosis at 17.7 s: fitted on the whole training split its FOS kept 153 terms
-    (44 in the folds), and the fit with the detectors' refit on to twice the terms took 210 s alone."""
+    leader's estimate planned the diagnosis at 17.7 s: fitted on the whole training split it chose longer lags and
+    kept 371 terms (44 in the folds), and the fit with the detectors' refit with a longer selection took 210 s."""
     from .. import registry
     from .plan import diagnosis_work as planned
     from .space import Found
