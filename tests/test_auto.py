@@ -684,6 +684,26 @@ def test_the_diagnosis_takes_the_search_s_own_fit_of_the_leader(tmp_path, monkey
     assert len([p for p in fitted if p == raw["model"]["params"]]) == leader_fits - 1
 
 
+def test_a_checked_diagnosis_is_the_fit_a_fit_task_makes(tmp_path):
+    """After a cross-validation the model's own fit on the spec's layout is the fit the moves' diagnosis of the
+    leader makes there: a checked diagnosis fits, scores and checks as a fit task does and keeps the model, so the
+    search takes it instead of fitting the winner again. The same score, band checks, model and free run."""
+    from dynmodel.search.worker import Task, run_task
+
+    _data(tmp_path)
+    raw = {**_raw(), "model": {"family": "narx", "params": {"lags": {"u": [0, 1], "y": [1]}, "degree": 1}}}
+    raw["cost"] = "mse_inf"
+    fit = run_task(Task("f", raw, tmp_path, "<t>", layout=Layout("full")), keep_model=True)
+    checked = run_task(Task("d", raw, tmp_path, "<t>", kind="diagnose", layout=Layout("full"), checked=True))
+    assert fit.status == checked.status == "ok" and checked.proposals  # diagnosed too
+    assert checked.score == fit.score and checked.checks == fit.checks and checked.checks["ok"]
+    assert checked.moments == fit.moments and checked.complexity == fit.complexity
+    assert fit.model is not None and checked.model is not None
+    u = np.linspace(-1, 1, 200)[:, None]
+    a, b = fit.model.to_model(), checked.model.to_model()
+    assert np.array_equal(a.run(u, np.zeros((1, 1))).y, b.run(u, np.zeros((1, 1))).y)
+
+
 @pytest.mark.slow
 def test_a_proposal_of_the_diagnosis_is_fitted_as_a_move(tmp_path, monkeypatch):
     """The moves stage fits what the diagnosis of the leader proposes. The detectors propose nothing on this

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import registry
-from ..batch import run_specs
+from ..batch import PointResult, run_specs
 from ..data.dataset import Dataset, is_test, last_samples
 from ..data.delay import READ_ON, dead_times
 from ..data.derived import position_like
@@ -458,6 +458,8 @@ class Search:
         self.linear_band = False  # judge band checks under the linear-system band (:meth:`_decide_band`)
         self.envelope: dict[str, Any] | None = None  # the linear reference's run per split (:meth:`_envelope`)
         self.kept: dict[str, Any] = {}  # task key -> ModelArrays
+        #: (candidate key, seed) -> the moves' diagnosis of it, fitted and checked on the spec's own layout
+        self.diagnosed: dict[tuple[str, int], TaskResult] = {}
         self.notes: list[str] = []
         self.stages: list[dict[str, Any]] = []
         self.interrupted: str | None = None
@@ -1004,17 +1006,25 @@ class Search:
             # task plans itself again from the fitted leader's size and stops within the work left to it
             refit = self._refit_work(leader)
             room = SHARES["moves"] * self.budget.allowance - refit - self.budget.planned
+            model = self._fitted_in_full(leader)
+            # after a cross-validation the model's own fit (:meth:`_final_model`) is this very fit, checked alike
+            checked = model is None and self.mode != "tail" and not leader.stands_screened
             task = replace(
                 self._task(f"diagnose|{round_}|{leader.cand.key}", raw, "diagnose", Layout("full")),
                 allowance=room,
                 candidate=leader.cand,
                 context=self.ctx,
-                model=self._fitted_in_full(leader),
+                model=model,
+                checked=checked,
+                envelope=self.envelope if checked else None,
+                memory=checked and self.extrapolates,
             )
             diag = Group("diagnose", [task], diagnosis_work(estimated_work(leader.cand, self.ctx), self.ctx.n_train))
             if not self.budget.take("moves", [diag], minimum=0, reserve=refit):
                 return
             results = self._run(f"moves {round_ + 1}: diagnose the leader", [diag])
+            if checked and results and results[0].model is not None:
+                self.diagnosed[(leader.cand.key, seed)] = results[0]
             if results and results[0].status == "ok" and results[0].message:
                 self.notes.append(results[0].message)
             if not results or results[0].status != "ok" or not results[0].proposals:
@@ -1183,7 +1193,12 @@ class Search:
                 "(Ctrl-C again stops without a model)",
             )
         cancel_set = self.cancel.is_set()
-        results = list(run_specs([task], self.executor, keep_models=True, point=run_task, cancel=self._past_limit))
+        diagnosed = None if e.stands_screened or self.mode == "tail" else self.diagnosed.get((e.cand.key, seed))
+        results: list[PointResult]
+        if diagnosed is not None:  # the moves' diagnosis made this fit (same spec, seed and layout), checked alike
+            results = [copy.copy(diagnosed)]
+        else:
+            results = list(run_specs([task], self.executor, keep_models=True, point=run_task, cancel=self._past_limit))
         if not results and self._past_limit():  # the limit was reached during the fit
             self._drop_abandoned()
             return self._keep(e, level, True)

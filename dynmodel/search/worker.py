@@ -62,6 +62,9 @@ class Task(Variant):
     #: diagnose: the search's own fit of this spec (same seed) on this layout (:class:`~dynmodel.batch.ModelArrays`),
     #: diagnosed as it is instead of fitted again (on a held-out validation split, the leader's validated fit)
     model: Any = None
+    #: diagnose: fit as a ``fit`` task does (scores, band checks, the model kept in the result), so that the search
+    #: can take this fit as the model's own fit on the spec's layout after a cross-validation
+    checked: bool = False
 
 
 @dataclass
@@ -241,7 +244,9 @@ def _block_sums(full: list[Any], rows: list[Any], err2: Any, continued: Any = No
     return out
 
 
-def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> None:
+def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResult) -> tuple[Any, list[Run]]:
+    """Fit, score and check one candidate on the task's view (the ``fit`` kind); returns the model and its runs
+    there."""
     from .. import engine, protocol
     from ..usefulness import input_dependence, input_nonlinearity
     from .checks import affine, band_checks, complexity, measured_starts, start_memory, test_runs, usual_runs
@@ -297,6 +302,7 @@ def _fit(task: Task, spec: Spec, ds: Dataset, keep_model: bool, result: TaskResu
         payload = ModelArrays.from_model(model)
         payload.train_input = payload.train_input_lengths = payload.train_output = None  # the parent has them
         result.model = payload
+    return model, runs
 
 
 def _reference(task: Task, ds, result: TaskResult) -> None:
@@ -325,11 +331,16 @@ def _diagnose(task: Task, spec: Spec, ds: Dataset, result: TaskResult) -> None:
         model.train_output = v.concat_outputs("train")
         with fit_threads():
             _, runs = evaluate(model, v, list(spec.evaluation.metrics), spec.evaluation.one_step)
+    elif task.checked:  # fitted, scored and checked as a fit task is: the search keeps it for the model's own fit
+        model, runs = _fit(task, spec, ds, True, result)
+        if result.status != "ok":
+            return
     else:
         model, runs = engine.fit_dataset(spec, v)
-    result.metrics = model.metrics
-    result.score = _score(model.metrics)
-    result.status = "ok"
+    if not task.checked:
+        result.metrics = model.metrics
+        result.score = _score(model.metrics)
+        result.status = "ok"
     need = diagnosis_work(task, model.family)
     if need is not None and task.allowance is not None and need > task.allowance:
         result.message = (
@@ -349,7 +360,7 @@ def diagnosis_work(task: Task, fitted: Any) -> float | None:
     plans it (:func:`dynmodel.search.plan.diagnosis_work`) from the fit's seconds its family now gives knowing the
     fitted model's size (the ``full_work`` hook); None when the family gives none. On a generated system the
     leader's estimate planned the diagnosis at 17.7 s: fitted on the whole training split it chose longer lags and
-    kept 371 terms (44 in the folds), and the fit with the detectors' refit with a longer selection took 210 s."""
+    kept 371 terms (19 in the folds), and the fit with the detectors' refit with a longer selection took 210 s."""
     from .. import registry
     from .plan import diagnosis_work as planned
     from .space import Found
