@@ -630,7 +630,7 @@ def test_the_diagnosis_of_the_leader_plans_itself_again_from_the_fitted_size(tmp
     from dynmodel.search.plan import REFERENCE_WORKERS, diagnosis_work
     from dynmodel.search.space import Found, SearchContext
     from dynmodel.search.worker import Task, run_task
-    from dynmodel.search.worker import diagnosis_work as replanned
+    from dynmodel.search.worker import replanned_work as replanned
 
     detected: list[int] = []
     detect = diagnose_runner.detect

@@ -11,7 +11,7 @@ handling of dead workers. Three kinds:
   on the view (training and validation samples only);
 * ``diagnose``: fit the spec on the view (or take the search's own fit of it there) and run every detector of
   ``dynmodel diagnose`` on it; the result holds the extensions they propose (the search's moves). The
-  diagnosis plans itself again once the fit says how large the model is (:func:`diagnosis_work`): beyond the
+  diagnosis plans itself again once the fit says how large the model is (:func:`replanned_work`): beyond the
   work the search left it, the detectors are left out and the result says so.
 
 Every task is a deterministic function of its fields: the result does not depend on the worker.
@@ -329,8 +329,8 @@ def _diagnose(task: Task, spec: Spec, ds: Dataset, result: TaskResult) -> None:
         model = task.model.to_model()
         model.train_input, model.train_input_lengths = v.concat_inputs("train")  # the search keeps them apart
         model.train_output = v.concat_outputs("train")
-        with fit_threads():
-            _, runs = evaluate(model, v, list(spec.evaluation.metrics), spec.evaluation.one_step)
+        with fit_threads():  # the runs only: its metrics came with it
+            _, runs = evaluate(model, v, ["nmse"], one_step=False)
     elif task.checked:  # fitted, scored and checked as a fit task is: the search keeps it for the model's own fit
         model, runs = _fit(task, spec, ds, True, result)
         if result.status != "ok":
@@ -341,7 +341,7 @@ def _diagnose(task: Task, spec: Spec, ds: Dataset, result: TaskResult) -> None:
         result.metrics = model.metrics
         result.score = _score(model.metrics)
         result.status = "ok"
-    need = diagnosis_work(task, model.family)
+    need = replanned_work(task, model.family)
     if need is not None and task.allowance is not None and need > task.allowance:
         result.message = (
             f"the diagnosis of the leader was left out: planned again from the leader's fitted size, it needs "
@@ -355,7 +355,7 @@ def _diagnose(task: Task, spec: Spec, ds: Dataset, result: TaskResult) -> None:
     ]
 
 
-def diagnosis_work(task: Task, fitted: Any) -> float | None:
+def replanned_work(task: Task, fitted: Any) -> float | None:
     """Planned seconds of a diagnosis of ``fitted`` (the leader's spec fitted on the task's view), as the search
     plans it (:func:`dynmodel.search.plan.diagnosis_work`) from the fit's seconds its family now gives knowing the
     fitted model's size (the ``full_work`` hook); None when the family gives none. On a generated system the

@@ -419,16 +419,19 @@ class Narx(Family):
         return emb
 
     def _patterns_of(self, data: TrainingData, emb: Embedding) -> tuple[pool_mod.Patterns, pool_mod.Patterns | None]:
-        """The training and validation patterns of ``emb`` (None: no validation pattern)."""
-        first = emb.max_lag if self.params.start == "drop" else 0
+        """The training and validation patterns of ``emb`` (None: no validation pattern), from one regressor
+        matrix."""
         mats = pool_mod.regressor_matrices(data, emb)
-        train = pool_mod.patterns(data, mats, "train", first)
-        val = pool_mod.patterns(data, mats, "validation", first) if data.has("validation") else None
+        train = pool_mod.patterns(data, mats, "train", self._first(emb))
+        val = pool_mod.patterns(data, mats, "validation", self._first(emb)) if data.has("validation") else None
         return train, (val if val is not None and val.n else None)
 
     def _patterns(self, data: TrainingData, emb: Embedding, split: str) -> pool_mod.Patterns:
-        first = emb.max_lag if self.params.start == "drop" else 0
-        return pool_mod.patterns(data, pool_mod.regressor_matrices(data, emb), split, first)
+        return pool_mod.patterns(data, pool_mod.regressor_matrices(data, emb), split, self._first(emb))
+
+    def _first(self, emb: Embedding) -> int:
+        """The first sample of a recording that makes a pattern: after the largest lag (``start: drop``), or 0."""
+        return emb.max_lag if self.params.start == "drop" else 0
 
     def _fit_finalists(
         self,
