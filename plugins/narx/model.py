@@ -430,8 +430,7 @@ class Narx(Family):
         return pool_mod.patterns(data, pool_mod.regressor_matrices(data, emb), split, self._first(emb))
 
     def _first(self, emb: Embedding) -> int:
-        """The first sample of a recording that makes a pattern: after the largest lag (``start: drop``), or 0."""
-        return emb.max_lag if self.params.start == "drop" else 0
+        return pool_mod.first_sample(emb, self.params.start)
 
     def _fit_finalists(
         self,

@@ -38,6 +38,12 @@ def regressor_matrices(data: TrainingData, emb: Embedding) -> list[np.ndarray]:
     return [emb.matrix(s.u, s.y) for s in data.series]
 
 
+def first_sample(emb: Embedding, start: str) -> int:
+    """The first sample of a recording that makes a pattern: after the largest lag (``start: drop``), or 0
+    (the lags before the recording zero-padded)."""
+    return emb.max_lag if start == "drop" else 0
+
+
 def patterns(data: TrainingData, mats: list[np.ndarray], split: str, first: int) -> Patterns:
     """Rows of ``split`` whose regressors and targets are all known. ``first``: the earliest
     usable sample of a recording (the largest lag when the first patterns are dropped, 0 with

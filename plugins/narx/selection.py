@@ -192,7 +192,7 @@ def _linear_start(
     an integrator is never reached from zero weights). The linear model needs no such luck: one-step
     least squares finds its dynamics directly."""
     mats = pool_mod.regressor_matrices(data, emb)
-    train = pool_mod.patterns(data, mats, "train", emb.max_lag if p.start == "drop" else 0)
+    train = pool_mod.patterns(data, mats, "train", pool_mod.first_sample(emb, p.start))
     degree = pool.sum(axis=1)
     linear = np.flatnonzero(degree <= 1 if p.constant else degree == 1)
     E = pool[linear]
