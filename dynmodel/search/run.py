@@ -1008,7 +1008,7 @@ class Search:
             room = SHARES["moves"] * self.budget.allowance - refit - self.budget.planned
             model = self._fitted_in_full(leader)
             # after a cross-validation the model's own fit (:meth:`_final_model`) is this very fit, checked alike
-            checked = model is None and self.mode != "tail" and not leader.stands_screened
+            checked = model is None and self._fitted_as_diagnosed(leader)
             task = replace(
                 self._task(f"diagnose|{round_}|{leader.cand.key}", raw, "diagnose", Layout("full")),
                 allowance=room,
@@ -1059,6 +1059,11 @@ class Search:
             if Layout(**r.layout) == Layout("full"):
                 return self.kept[r.key]
         return None
+
+    def _fitted_as_diagnosed(self, e: Entry) -> bool:
+        """Is ``e``'s model fitted after the search (:meth:`_final_model`) as the moves' diagnosis fits it: its full
+        spec on the spec's own layout (not the tail layout, not its screening variant)?"""
+        return self.mode != "tail" and not e.stands_screened
 
     def _refit_work(self, leader: Entry) -> float:
         """Planned work of the model's fits after the search, which the moves leave room for: on a holdout none
@@ -1193,7 +1198,7 @@ class Search:
                 "(Ctrl-C again stops without a model)",
             )
         cancel_set = self.cancel.is_set()
-        diagnosed = None if e.stands_screened or self.mode == "tail" else self.diagnosed.get((e.cand.key, seed))
+        diagnosed = self.diagnosed.get((e.cand.key, seed)) if self._fitted_as_diagnosed(e) else None
         results: list[PointResult]
         if diagnosed is not None:  # the moves' diagnosis made this fit (same spec, seed and layout), checked alike
             results = [copy.copy(diagnosed)]

@@ -337,10 +337,8 @@ def _diagnose(task: Task, spec: Spec, ds: Dataset, result: TaskResult) -> None:
             return
     else:
         model, runs = engine.fit_dataset(spec, v)
-    if not task.checked:
-        result.metrics = model.metrics
-        result.score = _score(model.metrics)
-        result.status = "ok"
+    if not task.checked:  # (a checked fit is scored by _fit, whose score may mix in a fresh start)
+        result.metrics, result.score, result.status = model.metrics, _score(model.metrics), "ok"
     need = replanned_work(task, model.family)
     if need is not None and task.allowance is not None and need > task.allowance:
         result.message = (

@@ -422,15 +422,14 @@ class Narx(Family):
         """The training and validation patterns of ``emb`` (None: no validation pattern), from one regressor
         matrix."""
         mats = pool_mod.regressor_matrices(data, emb)
-        train = pool_mod.patterns(data, mats, "train", self._first(emb))
-        val = pool_mod.patterns(data, mats, "validation", self._first(emb)) if data.has("validation") else None
+        first = pool_mod.first_sample(emb, self.params.start)
+        train = pool_mod.patterns(data, mats, "train", first)
+        val = pool_mod.patterns(data, mats, "validation", first) if data.has("validation") else None
         return train, (val if val is not None and val.n else None)
 
     def _patterns(self, data: TrainingData, emb: Embedding, split: str) -> pool_mod.Patterns:
-        return pool_mod.patterns(data, pool_mod.regressor_matrices(data, emb), split, self._first(emb))
-
-    def _first(self, emb: Embedding) -> int:
-        return pool_mod.first_sample(emb, self.params.start)
+        first = pool_mod.first_sample(emb, self.params.start)
+        return pool_mod.patterns(data, pool_mod.regressor_matrices(data, emb), split, first)
 
     def _fit_finalists(
         self,
