@@ -199,7 +199,7 @@ def test_the_test_runs_are_scaled_by_the_training_outputs_and_thinned(tmp_path):
     deviations inside the test's 500-sample transient only; counted there, their spread (2.5e17 %) set aside the
     candidate that tests best (0.79 % test NMSE). Fits of one candidate with another tune-in (a NARX model whose
     lags each fold chooses) share the grid, so their pair is compared."""
-    from dynmodel.search.checks import SPREAD_SAMPLES, spread, test_runs, usual_runs
+    from dynmodel.search.checks import SPREAD_SAMPLES, pair_differences, spread, test_runs, usual_runs
     from dynmodel_plugins.narx import Narx
 
     u, y = narx(3000, 11)
@@ -236,6 +236,10 @@ def test_the_test_runs_are_scaled_by_the_training_outputs_and_thinned(tmp_path):
     assert len(later) == 1500 and np.isnan(later[:104]).all() and np.isfinite(later[104:]).all()
     shifted = {key: later + 0.1}
     assert spread([got, shifted]) == pytest.approx(100 * 0.01)
+    # three fits: every pair (0-1, 0-2, 1-2); the spread is their median, the closest pair their smallest
+    far = {key: later + 0.3}
+    assert pair_differences([got, shifted, far]) == pytest.approx([1.0, 9.0, 4.0])
+    assert spread([got, shifted, far]) == pytest.approx(4.0)
 
 
 def test_the_search_records_how_far_the_fits_of_each_candidate_part_ways_on_the_test_inputs(tmp_path, monkeypatch):
@@ -251,6 +255,9 @@ def test_the_search_records_how_far_the_fits_of_each_candidate_part_ways_on_the_
     several = [lv for lv in levels if lv["fits"] >= 2 and lv["status"] == "ok"]
     assert several and all(lv["test_spread"] is not None and lv["test_spread"] > 0 for lv in several)
     assert all(lv["test_spread"] is None for lv in levels if lv["fits"] < 2)
+    # the closest pair is a pair too: no further apart than the median one, and recorded with it
+    assert all(0 < lv["test_spread_closest"] <= lv["test_spread"] for lv in several)
+    assert all(lv["test_spread_closest"] is None for lv in levels if lv["fits"] < 2)
     winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
     parted = winner["levels"][rec["level"]]["test_spread"]
     (note,) = [n for n in rec["notes"] if "part ways on the test inputs" in n]

@@ -266,13 +266,12 @@ def test_runs(ds: Dataset, runs: UsualRuns, warmup: int = 0) -> dict[str, np.nda
     return out
 
 
-def spread(runs: list[dict[str, np.ndarray]]) -> float | None:
-    """How far the fits of one candidate (its seeds, its folds) part ways on the test inputs: the median over pairs
-    of fits of their runs' mean squared difference, in % of the training output variance (:func:`test_runs`).
-    For any pair, ||a - b||^2 <= 2 (||a - y||^2 + ||b - y||^2), so the pair's mean squared error on the test
-    (against the training output variance) is at least a quarter of their difference, whatever the test outputs
-    are. Each pair is compared where both runs are finite: the samples the evaluation scores for both (NaN before,
-    :func:`test_runs`). None with fewer than two fits, or no test split."""
+def pair_differences(runs: list[dict[str, np.ndarray]]) -> list[float]:
+    """How far each pair of a candidate's fits (its seeds, its folds) part ways on the test inputs: their runs' mean
+    squared difference, in % of the training output variance (:func:`test_runs`). For any pair,
+    ||a - b||^2 <= 2 (||a - y||^2 + ||b - y||^2), so the pair's mean squared error on the test (against the training
+    output variance) is at least a quarter of their difference, whatever the test outputs are. Each pair is compared
+    where both runs are finite: the samples the evaluation scores for both (NaN before, :func:`test_runs`)."""
     diffs = []
     for i in range(len(runs)):
         for j in range(i + 1, len(runs)):
@@ -283,6 +282,12 @@ def spread(runs: list[dict[str, np.ndarray]]) -> float | None:
             d = d[np.isfinite(d)]
             if d.size:
                 diffs.append(100.0 * float(np.mean(d * d)))
+    return diffs
+
+
+def spread(runs: list[dict[str, np.ndarray]]) -> float | None:
+    """The median of :func:`pair_differences` over pairs of fits; None with fewer than two fits, or no test split."""
+    diffs = pair_differences(runs)
     return float(np.median(diffs)) if diffs else None
 
 
