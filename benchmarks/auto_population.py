@@ -3,6 +3,7 @@
     python benchmarks/auto_population.py                  # 24 systems (about 16 min on 2 cores)
     python benchmarks/auto_population.py --only sys7 --no-defaults
     python benchmarks/auto_population.py --first-seed 300    # a fresh population, drawn from seeds 300 + K
+    python benchmarks/auto_population.py --records out/      # also each search's record, out/sysK.json
 
 The other generated cases are chosen by hand, each for a difficulty the search was then taught; this one draws
 its systems from seeds, so that none was picked for the search. System ``sysK`` comes from seed 100 + K (the

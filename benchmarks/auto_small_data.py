@@ -271,6 +271,9 @@ def fit_files(
         "notes": (model.search or {}).get("notes", []),
         "defaults": {},
     }
+    if getattr(args, "records", None) is not None:  # every candidate's figures, as `fit --json` writes them
+        record = {"metrics": model.metrics, "search": model.search}
+        (args.records / f"{name}.json").write_text(json.dumps(record, indent=1, default=str))
     installed = set(families())
     for family in defaults:
         if family in installed and not args.no_defaults:
@@ -325,9 +328,12 @@ def run_generated(
         ap.add_argument("--families", nargs="*", help="families auto searches (default: every installed one)")
     ap.add_argument("--no-defaults", action="store_true", help="run auto only")
     ap.add_argument("--json", type=Path, help="write every figure as JSON")
+    ap.add_argument("--records", type=Path, help="folder for each case's search record (<case>.json) of auto")
     if options is not None:
         options(ap)
     args = ap.parse_args()
+    if args.records is not None:
+        args.records.mkdir(parents=True, exist_ok=True)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     results = []
     with tempfile.TemporaryDirectory() as tmp:
