@@ -56,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import failed_split, forgets, pair_differences, remembers
+from .checks import failed_split, forgets, pair_differences, remembers, spread
 
 TIE = 0.01
 CAUTIOUS_TIE = 0.10
@@ -283,7 +283,7 @@ def summarize(results: list[Any]) -> Summary | None:
     failure = next((failed_split(r.checks) for r in chosen if failed_split(r.checks)), None)
     if failure is None and not ok:
         failure = next((failed_split(r.checks) for r in fits if failed_split(r.checks)), None)
-    apart = pair_differences([r.test_runs for r in fits if r.status == "ok" and getattr(r, "test_runs", None)])
+    test_runs = [r.test_runs for r in fits if r.status == "ok" and getattr(r, "test_runs", None)]
     errors = [r for r in fits if r.status == "error"]
     diverged = [r for r in fits if r.status == "diverged"]
     status = "ok"
@@ -310,8 +310,8 @@ def summarize(results: list[Any]) -> Summary | None:
         nonlinearity=float(np.median(curved)) if curved else None,
         memory=float(np.median(memories)) if memories else None,
         clipped=next((r.checks["clipped"] for r in chosen if r.checks.get("clipped")), None),
-        spread=float(np.median(apart)) if apart else None,
-        closest=min(apart) if apart else None,
+        spread=spread(test_runs),
+        closest=min(pair_differences(test_runs), default=None),
     )
 
 
