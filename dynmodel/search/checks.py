@@ -285,10 +285,15 @@ def pair_differences(runs: list[dict[str, np.ndarray]]) -> list[float]:
     return diffs
 
 
-def spread(runs: list[dict[str, np.ndarray]]) -> float | None:
-    """The median of :func:`pair_differences` over pairs of fits; None with fewer than two fits, or no test split."""
-    diffs = pair_differences(runs)
+def median_difference(diffs: list[float]) -> float | None:
+    """The median of :func:`pair_differences`; None without a pair (fewer than two fits, or no test split)."""
     return float(np.median(diffs)) if diffs else None
+
+
+def spread(runs: list[dict[str, np.ndarray]]) -> float | None:
+    """How far the fits of one candidate part ways on the test inputs: the median over pairs of fits
+    (:func:`median_difference` of :func:`pair_differences`)."""
+    return median_difference(pair_differences(runs))
 
 
 def band_checks(

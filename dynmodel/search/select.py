@@ -56,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import failed_split, forgets, pair_differences, remembers, spread
+from .checks import failed_split, forgets, median_difference, pair_differences, remembers
 
 TIE = 0.01
 CAUTIOUS_TIE = 0.10
@@ -283,7 +283,7 @@ def summarize(results: list[Any]) -> Summary | None:
     failure = next((failed_split(r.checks) for r in chosen if failed_split(r.checks)), None)
     if failure is None and not ok:
         failure = next((failed_split(r.checks) for r in fits if failed_split(r.checks)), None)
-    test_runs = [r.test_runs for r in fits if r.status == "ok" and getattr(r, "test_runs", None)]
+    apart = pair_differences([r.test_runs for r in fits if r.status == "ok" and getattr(r, "test_runs", None)])
     errors = [r for r in fits if r.status == "error"]
     diverged = [r for r in fits if r.status == "diverged"]
     status = "ok"
@@ -310,8 +310,8 @@ def summarize(results: list[Any]) -> Summary | None:
         nonlinearity=float(np.median(curved)) if curved else None,
         memory=float(np.median(memories)) if memories else None,
         clipped=next((r.checks["clipped"] for r in chosen if r.checks.get("clipped")), None),
-        spread=spread(test_runs),
-        closest=min(pair_differences(test_runs), default=None),
+        spread=median_difference(apart),
+        closest=min(apart, default=None),
     )
 
 
@@ -369,16 +369,17 @@ def parts_ways(s: Summary) -> bool:
     return spread_floor(s) > max(s.score, SPREAD_FLOOR)
 
 
+def agrees(s: Summary) -> bool:
+    """Do its fits (two or more) agree on the test inputs: a spread whose floor is no flaw (not :func:`parts_ways`)?"""
+    return s.spread is not None and not parts_ways(s)
+
+
 def parted_aside(eligible: list[str], summaries: dict[str, Summary], best: float) -> list[str]:
     """The candidates of ``eligible`` whose fits part ways on the test inputs (:func:`parts_ways`) while one
     with as many fits (seeds x layouts, the same kind of evidence) that agree there validates within
     :data:`ABOUT_AS_WELL` of the score ``best``."""
     agreeing = {
-        summaries[k].fits
-        for k in eligible
-        if summaries[k].spread is not None
-        and not parts_ways(summaries[k])
-        and summaries[k].score <= ABOUT_AS_WELL * best
+        summaries[k].fits for k in eligible if agrees(summaries[k]) and summaries[k].score <= ABOUT_AS_WELL * best
     }
     return [k for k in eligible if parts_ways(summaries[k]) and summaries[k].fits in agreeing]
 
@@ -391,7 +392,7 @@ def kept_floor(s: Summary) -> float:
     median pair does). 0 for folds, trained on fewer samples than the model kept: they can part ways where it
     does not (seeds 700's sys2: folds at 0.20 - 0.56 % and 1205 % on the test, the refit on every sample at
     0.126 %)."""
-    if s.closest is None or s.fits < 2 or s.fits != len(s.seeds):
+    if s.closest is None or s.fits != len(s.seeds):
         return 0.0
     return s.closest / 4
 
@@ -399,7 +400,7 @@ def kept_floor(s: Summary) -> float:
 def below_floor(eligible: list[str], summaries: dict[str, Summary]) -> dict[str, str]:
     """The candidates of ``eligible`` whose seeds part ways on the test inputs so far that every one but one errs
     there by more than its validation error (:func:`kept_floor` above its score and :data:`SPREAD_FLOOR`), each
-    with a candidate whose as many fits agree there (not :func:`parts_ways`) and that validates below that floor:
+    with a candidate whose as many fits agree there (:func:`agrees`) and that validates below that floor:
     it will do better on the test than all but one of those seeds can (key -> the best such candidate)."""
     out: dict[str, str] = {}
     for k in eligible:
@@ -407,12 +408,7 @@ def below_floor(eligible: list[str], summaries: dict[str, Summary]) -> dict[str,
         if floor <= max(s.score, SPREAD_FLOOR):
             continue
         agreeing = [
-            a
-            for a in eligible
-            if summaries[a].spread is not None
-            and not parts_ways(summaries[a])
-            and summaries[a].fits == s.fits
-            and summaries[a].score < floor
+            a for a in eligible if agrees(summaries[a]) and summaries[a].fits == s.fits and summaries[a].score < floor
         ]
         if agreeing:
             out[k] = agreeing[0]
