@@ -1856,6 +1856,42 @@ def test_a_network_whose_seeds_all_but_one_err_on_the_test_beyond_an_agreeing_on
     assert choose({"a": folds, "b": _fits(0.1112, 400, spread=0.251, fits=4)}, labels).key == "a"
 
 
+def _refitted(score: float, size: float, apart: float | None) -> Summary:
+    """A deterministic candidate on a hold-out split (one fit), its refit on every sample ``apart`` from it on the
+    test inputs (None: not refitted)."""
+    s = _fits(score, size, spread=None, fits=1)
+    s.refit_apart = apart
+    return s
+
+
+def test_a_deterministic_model_whose_refit_holds_on_the_test_inputs_vouches_against_seeds_that_part_ways():
+    """Seeds 2100's sys22 (a Wiener system with a saturation, held steps of another hold time on the test; a
+    hold-out split): every internal network fitted in full parted ways on the test inputs. The one kept validated at
+    0.025 %, its closest seeds 0.605 % apart there (all but one err by at least 0.151 %), and tested 1.51 %. The
+    NARX default validated at 0.042 %, its refit on every sample 0.0122 % from it there, and tested 0.10 %."""
+    from dynmodel.search.select import refit_floor, vouches
+
+    labels = {"a": "internal", "b": "narx", "c": "external"}
+    parted = _seeds(0.02501, 311, spread=5.16, closest=0.605)
+    holds = _refitted(0.04233, 35, apart=0.0122)
+    assert refit_floor(holds) == pytest.approx(0.00305) and refit_floor(_refitted(0.04, 35, None)) is None
+    assert vouches(holds, parted, 0.151) and not vouches(holds, parted, 0.04)
+    c = choose({"a": parted, "b": holds}, labels)
+    assert c.key == "b" and c.verdicts["a"].startswith("set aside: its seeds part ways on the test inputs")
+    assert "all but one err there by at least 0.151 %" in c.notes[0]
+    assert "narx, whose refit on every sample departs from its validated fit there by 0.0122 %" in c.notes[0]
+    # not refitted: no evidence, validation decides
+    assert choose({"a": parted, "b": _refitted(0.04233, 35, None)}, labels).key == "a"
+    # its refit departs from it so far that one of the two errs there beyond the network's floor (seeds 100's
+    # sys10 kind: the NARX model fitted on 80 % and on 100 % of the samples 1736 % apart on the test inputs) ...
+    assert choose({"a": parted, "b": _refitted(0.04233, 35, apart=4 * 0.2)}, labels).key == "a"
+    # ... or it validates above that floor: validation decides
+    assert choose({"a": parted, "b": _refitted(0.16, 35, apart=0.0122)}, labels).key == "a"
+    # of the candidates that hold there, the best on validation is chosen
+    agreeing = _seeds(0.03, 400, spread=0.02, closest=0.01)
+    assert choose({"a": parted, "b": holds, "c": agreeing}, labels).key == "c"
+
+
 def test_the_choice_prefers_a_model_without_an_output_clip_its_input_drives_it_into_when_one_validates_as_well():
     """Under the linear-system band (the system is about linear), a model whose peaks an input cuts flat at an
     output clip is set aside when an unclipped one validates within 25 %, and kept when none does."""
