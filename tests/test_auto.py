@@ -29,7 +29,7 @@ from dynmodel.errors import SpecError
 from dynmodel.family import Family, FamilyParams, Simulation, no_progress
 from dynmodel.search import search_options
 from dynmodel.search.report import headline
-from dynmodel.search.select import Summary, choose, parts_ways
+from dynmodel.search.select import Summary, agrees, choose, parts_ways
 from dynmodel.search.space import Candidate
 from dynmodel.search.views import Layout, possible_folds, possible_recording_folds, view
 from dynmodel.spec import spec_model, validate_spec
@@ -1854,6 +1854,41 @@ def test_a_network_whose_seeds_all_but_one_err_on_the_test_beyond_an_agreeing_on
     folds.closest = 1.551
     assert kept_floor(folds) == 0.0
     assert choose({"a": folds, "b": _fits(0.1112, 400, spread=0.251, fits=4)}, labels).key == "a"
+
+
+def test_on_a_hold_out_split_seeds_part_ways_only_when_all_but_one_err_beyond_the_validation():
+    """benchmarks/auto_other_systems.py's stick-slip friction (a hold-out split): an external network of 400 elements
+    validated best at 0.0101 %, its three seeds' median pair 0.0555 % apart on the test split (a floor of 0.0139 % for
+    that pair), the closest two 0.0155 % (all but one err by at least 0.0039 %, below its validation error); it tests
+    at 0.0228 %. Read on the median pair, it was set aside for a network of 200 elements whose seeds agree, 0.0107 %
+    on validation, which tests at 0.148 %. On a hold-out split the model kept is one more draw of its seeds, and the
+    floor read is the one all but one seed exceed; folds keep the median pair (the population's sys4)."""
+    from dynmodel.search.select import fits_floor, floor_words
+
+    labels = {"a": "external 400", "b": "external 200"}
+    best, agreeing = (
+        _seeds(0.0101, 109, spread=0.0555, closest=0.0155),
+        _seeds(0.0107, 154, spread=0.027, closest=0.0112),
+    )
+    assert fits_floor(best) == pytest.approx(0.0155 / 4) and not parts_ways(best)
+    c = choose({"a": best, "b": agreeing}, labels)
+    assert c.key == "a" and c.verdicts["b"] == "validates worse" and not c.notes
+    # the same fits as folds (four fits of one seed): the median pair is read, and it is set aside
+    folds, other = _fits(0.0101, 109, spread=0.0555, fits=4), _fits(0.0107, 154, spread=0.027, fits=4)
+    folds.closest, other.closest = 0.0155, 0.0112
+    assert fits_floor(folds) == pytest.approx(0.0555 / 4) and parts_ways(folds)
+    assert choose({"a": folds, "b": other}, labels).key == "b"
+    # seeds that do part ways that far are set aside as before, and the note reads the closest pair
+    wide = _seeds(0.0101, 109, spread=0.2, closest=0.1)
+    c = choose({"a": wide, "b": agreeing}, labels)
+    assert c.key == "b" and "the closest two of its seeds differ there by 0.1 %" in c.notes[-1]
+    assert "all but one err there by at least 0.025 %" in floor_words(wide)
+    # two close seeds and a wild one (seeds 2100's sys22: the closest two 0.122 % apart, the median pair 2.58 %;
+    # it tests at 0.90 %) neither part ways by that reading nor agree: they vouch for nothing
+    between = _seeds(0.0433, 202, spread=2.58, closest=0.122)
+    assert not parts_ways(between) and not agrees(between)
+    parted = _seeds(0.02501, 311, spread=5.16, closest=0.605)
+    assert choose({"a": parted, "b": between}, labels).key == "a"
 
 
 def _refitted(score: float, size: float, apart: float | None) -> Summary:
