@@ -3,14 +3,12 @@ candidates extrapolate, so the choice is never left to a single full fit (dynmod
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from beyond_range import CASES
-from conftest import ROOT, narx, write_csv
+from conftest import benchmark, narx, write_csv
 
 from dynmodel import engine
 from dynmodel.data import load_dataset
@@ -266,19 +264,6 @@ def test_the_search_records_how_far_the_fits_of_each_candidate_part_ways_on_the_
     assert f"at least {parted / 4:.3g} %" in note
 
 
-def _population_system(k: int, first_seed: int) -> tuple[str, dict, dict]:
-    """System ``sysK`` of benchmarks/auto_population.py, drawn from ``first_seed + k``."""
-    spec = importlib.util.spec_from_file_location("auto_population", ROOT / "benchmarks" / "auto_population.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(ROOT / "benchmarks"))  # it imports auto_small_data
-    try:
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
-    return module.system(k, first_seed)
-
-
 def test_networks_whose_seeds_part_ways_give_way_to_a_narx_model_whose_refit_holds_on_the_test_inputs(tmp_path):
     """Seeds 2100's sys22 of the population (a Wiener system, a saturation at +-0.8 after a linear filter, driven by
     held steps; the test's steps are held for another time; 8000 training and 2000 validation samples): every
@@ -286,7 +271,7 @@ def test_networks_whose_seeds_part_ways_give_way_to_a_narx_model_whose_refit_hol
     network kept validated at 0.025 % and tested 1.51 %. Now the NARX default is fitted in full and again on every
     sample; its two fits nearly agree on the test inputs, it validates below the networks' floor and is chosen:
     0.100 % (the NARX default alone 0.137 %)."""
-    description, train, test = _population_system(22, 2100)
+    description, train, test = benchmark("auto_population").system(22, 2100)
     assert description == "wiener sat steps n=10000 noise=0"
     write_csv(tmp_path / "train.csv", train)
     write_csv(tmp_path / "test.csv", test)

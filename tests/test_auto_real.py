@@ -11,23 +11,11 @@ start-up transient the test then scored (KDN 3.0 %, kidney 9.8 % test NMSE where
 
 from __future__ import annotations
 
-import importlib.util
-from typing import Any
-
 import pytest
-from conftest import ROOT, SHARED_DATA
+from conftest import ROOT, SHARED_DATA, benchmark
 
 SEALS = SHARED_DATA / "pneumatic_seal_friction" / "friction"
 needs_seals = pytest.mark.skipif(not SEALS.is_dir(), reason=f"real friction data not found at {SEALS}")
-
-
-def _small_data() -> Any:
-    """benchmarks/auto_small_data.py: its cases and its separate-test layout, the ones measured there."""
-    spec = importlib.util.spec_from_file_location("auto_small_data", ROOT / "benchmarks" / "auto_small_data.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.mark.slow
@@ -35,7 +23,7 @@ def _small_data() -> Any:
 @pytest.mark.parametrize(("name", "ceiling"), [("kdn-3bar", 0.8), ("kidney-2bar", 0.5)])
 def test_with_a_separate_test_recording_auto_is_as_good_as_the_narx_default(name, ceiling):
     """Measured: KDN 0.57 % (NARX default 0.94), kidney 0.34 % (0.34); before, 3.0 and 9.8 %."""
-    bench = _small_data()
+    bench = benchmark("auto_small_data")
     data = bench.separate_test(bench.CASES[name])
     base = {"name": "seal", "data": data, "seed": 0, "evaluation": {"metrics": ["nmse"]}}
     auto, _ = bench.fit_timed({**base, "model": {"family": "auto"}}, None)
@@ -54,7 +42,7 @@ def test_after_a_cross_validation_the_model_kept_fits_its_data_as_the_folds_did(
     level) was 607 and the model a constant: 102 % NMSE on training, 124 % on validation, 62 474 % on a test
     whose output barely moves (the NARX default: 321 %). Its fit validated with the last block held out fits
     those samples 56 x better, and it is now the model (refitted on every sample): 242 % on that test."""
-    bench = _small_data()
+    bench = benchmark("auto_small_data")
     data = {**bench.CASES["nap310-1bar"], "segments": [[0, 500]]}
     spec = {"name": "nap500", "data": data, "model": {"family": "auto"}, "seed": 0}
     auto, _ = bench.fit_timed(spec, None)
@@ -73,7 +61,7 @@ def test_when_every_candidate_leaves_the_band_the_best_is_kept_as_the_note_says(
     The choice keeps the best on validation anyway and says so; its final fit left the band too, and the search
     then failed ("found no usable model: ... kept the best on validation anyway"). It is now the model, and the
     evaluation shows how poor it is."""
-    bench = _small_data()
+    bench = benchmark("auto_small_data")
     data = bench.first_samples(bench.CASES["pk-5bar"], 500)
     auto, _ = bench.fit_timed({"name": "pk500", "data": data, "model": {"family": "auto"}, "seed": 0}, None)
     assert any("kept the best on validation anyway" in n for n in auto.search["notes"])

@@ -61,6 +61,7 @@ from .select import (
     ignores_input,
     kept_floor,
     model_size,
+    parted_seeds,
     parted_words,
     sound_within,
     spread_floor,
@@ -951,9 +952,9 @@ class Search:
         if key is None or level != "final":
             return
         leader = self.entries[key].summaries["final"]
-        floor = kept_floor(leader)
-        if floor <= max(leader.score, SPREAD_FLOOR):
+        if not parted_seeds(leader):
             return
+        floor = kept_floor(leader)
         below = []
         for k in self.ranking():
             e, lv = self.entries[k], self.entries[k].best_level()
@@ -978,15 +979,9 @@ class Search:
             # on a hold-out split a deterministic candidate has one fit: the model the choice would keep
             validated = next((r.test_runs for r in self._kept_fits(e, "final") if r.test_runs), None)
             model = self._keep(e, "final", False)
-            if validated is None or model is None:
+            config, warm = self._frozen(model) if model is not None else (None, False)
+            if validated is None or config is None:
                 continue
-            try:
-                config = model.family.frozen_config()
-            except (ValueError, RuntimeError):
-                config = None
-            if config is None:
-                continue
-            warm = bool(config.get("warm_first")) and bool(config.get("warm"))
             r, failed, _ = self._refit_attempt(e, model, "final", config, warm, self._fit_error(model, every))
             if r is not None and failed is None and r.test_runs:
                 apart = pair_differences([validated, r.test_runs])
@@ -1332,10 +1327,7 @@ class Search:
         else:
             where = "the whole training split, the samples held out to validate it included"
             scores = "the training scores below include them"
-        try:
-            config = model.family.frozen_config()
-        except (ValueError, RuntimeError):
-            config = None
+        config, warm = self._frozen(model)
         why = None
         if config is None:
             why = f"the {e.cand.family} family cannot freeze the choices this fit made on validation"
@@ -1349,20 +1341,15 @@ class Search:
         assert config is not None
         every = view(self.ds, Layout("all"))
         before = self._fit_error(model, every)  # the model validated's fit error on those samples
-
-        def attempt(warm: bool) -> tuple[TaskResult | None, str | None, bool]:
-            return self._refit_attempt(e, model, level, config, warm, before)
-
         self.progress("search", None, f"fitting {e.label} again on all {every.n_scored('train')} training samples")
-        warm = bool(config.get("warm_first")) and bool(config.get("warm"))
         try:
-            r, failed, retry = attempt(warm)
+            r, failed, retry = self._refit_attempt(e, model, level, config, warm, before)
             if retry and config.get("warm") and not self._stopping():
                 # a failed or stalled estimation from one start: once more from the other
                 start = "its own start" if warm else "the model validated's values"
                 self.progress("search", None, f"fitting {e.label} again, from {start}")
                 first, warm = failed, not warm
-                r, failed, _ = attempt(warm)
+                r, failed, _ = self._refit_attempt(e, model, level, config, warm, before)
                 if failed is not None:
                     failed = f"{first}; from {start}: {failed}"
         except KeyboardInterrupt as exc:  # the model validated is a whole model: keep it
@@ -1395,6 +1382,19 @@ class Search:
             f"search's validation NMSE: {score:.4g} %)"
         )
         return r.model.to_model()
+
+    @staticmethod
+    def _frozen(model) -> tuple[dict[str, Any] | None, bool]:
+        """``model``'s configuration with the choices its fit made on validation frozen
+        (:meth:`dynmodel.family.Family.frozen_config`; None: its family cannot freeze them), and whether its refit
+        starts first from the values validated (``warm``)."""
+        try:
+            config = model.family.frozen_config()
+        except (ValueError, RuntimeError):
+            return None, False
+        if config is None:
+            return None, False
+        return config, bool(config.get("warm_first")) and bool(config.get("warm"))
 
     def _refit_attempt(
         self, e: Entry, model, level: str, config: dict[str, Any], warm: bool, before: float | None

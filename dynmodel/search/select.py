@@ -401,6 +401,12 @@ def parts_ways(s: Summary) -> bool:
     return fits_floor(s) > max(s.score, SPREAD_FLOOR)
 
 
+def parted_seeds(s: Summary) -> bool:
+    """On a hold-out split, do its seeds part ways on the test inputs so far that all but one err there by more than
+    its validation error (:func:`parts_ways` read on :func:`kept_floor`)?"""
+    return seeds_only(s) and parts_ways(s)
+
+
 def agrees(s: Summary) -> bool:
     """Do its fits (two or more) agree on the test inputs: the floor of a pair of them, the median pair
     (:func:`spread_floor`), at most its validation error or :data:`SPREAD_FLOOR`? Not merely the absence of
@@ -454,14 +460,14 @@ def vouches(a: Summary, s: Summary, floor: float) -> bool:
 
 def below_floor(eligible: list[str], summaries: dict[str, Summary]) -> dict[str, str]:
     """The candidates of ``eligible`` whose seeds part ways on the test inputs so far that every one but one errs
-    there by more than its validation error (:func:`kept_floor` above its score and :data:`SPREAD_FLOOR`), each
-    with the best candidate that :func:`vouches` to do better there (key -> that candidate)."""
+    there by more than its validation error (:func:`parted_seeds`), each with the best candidate that
+    :func:`vouches` to do better there (key -> that candidate)."""
     out: dict[str, str] = {}
     for k in eligible:
-        s, floor = summaries[k], kept_floor(summaries[k])
-        if floor <= max(s.score, SPREAD_FLOOR):
+        s = summaries[k]
+        if not parted_seeds(s):
             continue
-        better = [a for a in eligible if a != k and vouches(summaries[a], s, floor)]
+        better = [a for a in eligible if a != k and vouches(summaries[a], s, kept_floor(s))]
         if better:
             out[k] = better[0]
     return out
@@ -469,7 +475,7 @@ def below_floor(eligible: list[str], summaries: dict[str, Summary]) -> dict[str,
 
 def vouch_words(a: Summary) -> str:
     """What shows that ``a`` (:func:`vouches`) holds on the test inputs, for a note."""
-    if a.refit_apart is not None and a.spread is None:
+    if a.refit_apart is not None:  # a deterministic candidate (one fit: no seeds to agree)
         return (
             f"whose refit on every sample departs from its validated fit there by {a.refit_apart:.3g} % (so one of "
             f"the two errs there by at least {refit_floor(a):.3g} %)"
@@ -589,8 +595,7 @@ def choose(
         first, agreeing = summaries[eligible[0]], summaries[beneath[eligible[0]]]
         out.notes.append(
             f"{labels[eligible[0]]} validated best (validation NMSE {first.score:.4g} %), but its {first.fits} seeds "
-            f"part ways on the test inputs: the closest two differ there by {first.closest:.3g} % of the training "
-            f"output variance, so all but one err there by at least {kept_floor(first):.3g} %; "
+            f"part ways on the test inputs: {floor_words(first)}; "
             f"{labels[beneath[eligible[0]]]}, {vouch_words(agreeing)}, validates at {agreeing.score:.4g} %, below that: "
             "candidates whose seeds part ways like that are set aside"
         )
