@@ -303,3 +303,45 @@ def test_networks_whose_seeds_part_ways_give_way_to_a_narx_model_whose_refit_hol
     assert any("whose refit on every sample departs from its validated fit there" in n for n in rec["notes"])
     assert model.metrics["test"]["nmse"] < 0.3  # measured 0.100; the network kept before 1.51
     assert rec["refit"]["refitted"]  # the model kept is that refit
+
+
+@pytest.mark.slow
+def test_a_narx_model_screened_above_the_floor_of_networks_whose_seeds_part_ways_is_fitted_in_full_and_chosen(
+    tmp_path,
+):
+    """Seeds 300's sys21 of the population (a Hammerstein system, a saturation before a linear filter, driven by held
+    steps; 8000 training and 2000 validation samples): the internal networks validate best and their seeds part
+    ways on the test inputs (all but one err there by at least 0.012 %). The NARX default screened at 0.019 % with
+    least-squares weights, above that floor, and was left out of the refit-agreement stage: the network kept tested
+    0.116 %. A candidate screened within SURVIVOR_FACTOR of the floor is now fitted in full (0.0104 % on validation) and again on
+    every sample, and is chosen: 0.0114 % (the NARX default alone 0.0105 %)."""
+    description, train, test = benchmark("auto_population").system(21, 300)
+    assert description == "hammerstein sat steps n=10000 noise=0"
+    write_csv(tmp_path / "train.csv", train)
+    write_csv(tmp_path / "test.csv", test)
+    raw = {
+        "name": "screened-near-the-floor",
+        "data": {
+            "path": "train.csv",
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 0.8, "validation": 0.2},
+            "test": {"path": "test.csv"},
+        },
+        "model": {"family": "auto"},
+        "seed": 0,
+    }
+    spec = validate_spec(raw, "<test>", tmp_path)
+    model, _ = engine.fit_dataset(spec, load_dataset(spec))
+    rec = model.search
+    assert model.family.name == "narx" and any(s["stage"] == "full: refit agreement" for s in rec["stages"])
+    winner = next(c for c in rec["candidates"] if c["key"] == rec["winner"])
+    best = min(
+        (c for c in rec["candidates"] if c["family"] == "esn" and c["levels"].get("final", {}).get("band_ok")),
+        key=lambda c: c["levels"]["final"]["score"],
+    )
+    assert best["verdict"].startswith("set aside: its seeds part ways on the test inputs")
+    floor = best["levels"]["final"]["test_spread_closest"] / 4
+    assert floor < winner["levels"]["screen"]["score"] < SURVIVOR_FACTOR * floor  # screened above it, within reach
+    assert winner["levels"]["final"]["score"] < floor  # fitted in full, it validates below it
+    assert model.metrics["test"]["nmse"] < 0.03  # measured 0.0114; the network kept before 0.116
