@@ -313,8 +313,8 @@ def test_a_narx_model_screened_above_the_floor_of_networks_whose_seeds_part_ways
     steps; 8000 training and 2000 validation samples): the internal networks validate best and their seeds part
     ways on the test inputs (all but one err there by at least 0.012 %). The NARX default screened at 0.019 % with
     least-squares weights, above that floor, and was left out of the refit-agreement stage: the network kept tested
-    0.116 %. A candidate screened within SURVIVOR_FACTOR of the floor is now fitted in full (0.0104 % on validation) and again on
-    every sample, and is chosen: 0.0114 % (the NARX default alone 0.0105 %)."""
+    0.116 %. A candidate screened within SURVIVOR_FACTOR of the floor is now fitted in full (0.0104 % on
+    validation) and again on every sample, and is chosen: 0.0114 % (the NARX default alone 0.0105 %)."""
     description, train, test = benchmark("auto_population").system(21, 300)
     assert description == "hammerstein sat steps n=10000 noise=0"
     write_csv(tmp_path / "train.csv", train)

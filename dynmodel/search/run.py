@@ -939,9 +939,9 @@ class Search:
         """On a hold-out split, when the model the choice keeps is a random candidate whose seeds part ways on the
         test inputs so far that all but one err there by more than its validation error (:func:`.select.kept_floor`)
         and no candidate whose seeds agree there validates below that floor, up to :data:`REFIT_CHECKS`
-        deterministic candidates that validated below it, or only screened within :data:`SURVIVOR_FACTOR` of it
-        (the best first; fitted in full) are fitted again on every training and validation sample, their choices frozen, as the model
-        kept would be (:meth:`_refit_attempt`, made once: the final refit reuses it). A deterministic fit has no
+        deterministic candidates that validated below it, or were only screened within :data:`SURVIVOR_FACTOR` of
+        it (the best first; fitted in full) are fitted again on every training and validation sample, their choices
+        frozen, as the model kept would be (:meth:`_refit_attempt`, made once: the final refit reuses it). A deterministic fit has no
         seeds to compare; how far its refit's run departs from its validated fit's on the test inputs is its
         evidence of the same kind (:func:`.select.refit_floor`). Seeds 2100's sys22 (held steps of another hold
         time): every internal network fitted in full parted ways (the one kept validated at 0.025 % and tested
