@@ -940,12 +940,12 @@ class Search:
         test inputs so far that all but one err there by more than its validation error (:func:`.select.kept_floor`)
         and no candidate whose seeds agree there validates below that floor, up to :data:`REFIT_CHECKS`
         deterministic candidates that validated below it, or were only screened within :data:`SURVIVOR_FACTOR` of
-        it (the best first; fitted in full) are fitted again on every training and validation sample, their choices
-        frozen, as the model kept would be (:meth:`_refit_attempt`, made once: the final refit reuses it). A deterministic fit has no
-        seeds to compare; how far its refit's run departs from its validated fit's on the test inputs is its
-        evidence of the same kind (:func:`.select.refit_floor`). Seeds 2100's sys22 (held steps of another hold
-        time): every internal network fitted in full parted ways (the one kept validated at 0.025 % and tested
-        1.51 %); the NARX default, screened out at 0.07 %, tested 0.137 %."""
+        it (:meth:`_near_best`; the best first, fitted in full) are fitted again on every training and validation
+        sample, their choices frozen, as the model kept would be (:meth:`_refit_attempt`, made once: the final
+        refit reuses it). A deterministic fit has no seeds to compare; how far its refit's run departs from its
+        validated fit's on the test inputs is its evidence of the same kind (:func:`.select.refit_floor`). Seeds
+        2100's sys22 (held steps of another hold time): every internal network fitted in full parted ways (the one
+        kept validated at 0.025 % and tested 1.51 %); the NARX default, screened out at 0.07 %, tested 0.137 %."""
         if self.mode != "holdout":
             return
         key, _, level = self.decide()
@@ -958,12 +958,12 @@ class Search:
         below = []
         for k in self.ranking():
             e, lv = self.entries[k], self.entries[k].best_level()
-            if e.random or lv is None or not self._usable(k, lv):
+            if e.random or lv is None or not self._usable(k, lv) or ignores_input(e.summaries[lv]):
                 continue
-            # a screening fit (the cheap variant) ranks its full fit only within SURVIVOR_FACTOR (seeds 300's sys21:
-            # the NARX default screened at 0.019 %, 1.6x the networks' floor, validates at 0.0104 % fitted in full)
-            slack = SURVIVOR_FACTOR if lv == "screen" and not e.reuse_screen else 1.0
-            if e.summaries[lv].score < slack * floor and not ignores_input(e.summaries[lv]):
+            # a screening fit (the cheap variant) ranks its full fit only as the survivors' rule reads it (seeds
+            # 300's sys21: the NARX default screened at 0.019 %, 1.6x the networks' floor, validates at 0.0104 %)
+            screened_only = lv == "screen" and not e.reuse_screen
+            if self._near_best([k], floor) if screened_only else e.summaries[lv].score < floor:
                 below.append(e)
         below = below[:REFIT_CHECKS]
         if not below or self._past_limit():
@@ -982,8 +982,10 @@ class Search:
             # on a hold-out split a deterministic candidate has one fit: the model the choice would keep
             validated = next((r.test_runs for r in self._kept_fits(e, "final") if r.test_runs), None)
             model = self._keep(e, "final", False)
-            config, warm = self._frozen(model) if model is not None else (None, False)
-            if validated is None or config is None:
+            if validated is None or model is None:
+                continue
+            config, warm = self._frozen(model)
+            if config is None:
                 continue
             r, failed, _ = self._refit_attempt(e, model, "final", config, warm, self._fit_error(model, every))
             if r is not None and failed is None and r.test_runs:
@@ -1394,10 +1396,8 @@ class Search:
         try:
             config = model.family.frozen_config()
         except (ValueError, RuntimeError):
-            return None, False
-        if config is None:
-            return None, False
-        return config, bool(config.get("warm_first")) and bool(config.get("warm"))
+            config = None
+        return config, config is not None and bool(config.get("warm_first")) and bool(config.get("warm"))
 
     def _refit_attempt(
         self, e: Entry, model, level: str, config: dict[str, Any], warm: bool, before: float | None
