@@ -273,7 +273,8 @@ def fit_files(
     }
     if getattr(args, "records", None) is not None:  # every candidate's figures, as `fit --json` writes them
         record = {"metrics": model.metrics, "search": model.search}
-        (args.records / f"{name}.json").write_text(json.dumps(record, indent=1, default=str))
+        file = name.replace("/", "_")  # a seal's case names its pressures: NAPN-1/3/7-5
+        (args.records / f"{file}.json").write_text(json.dumps(record, indent=1, default=str))
     installed = set(families())
     for family in defaults:
         if family in installed and not args.no_defaults:
@@ -328,7 +329,9 @@ def run_generated(
         ap.add_argument("--families", nargs="*", help="families auto searches (default: every installed one)")
     ap.add_argument("--no-defaults", action="store_true", help="run auto only")
     ap.add_argument("--json", type=Path, help="write every figure as JSON")
-    ap.add_argument("--records", type=Path, help="folder for each case's search record (<case>.json) of auto")
+    ap.add_argument(
+        "--records", type=Path, help="folder for each case's search record (<case>.json, a / in its name as _) of auto"
+    )
     if options is not None:
         options(ap)
     args = ap.parse_args()

@@ -264,3 +264,44 @@ def test_an_external_network_whose_short_tune_in_leaves_it_in_another_basin_fail
     assert found[1] is not None and found[1]["ok"] and found[1]["strayed"] == 0
     assert found[5] is not None and not found[5]["ok"] and found[5]["strayed"] >= 4
     assert found["5 settled"] is not None and found["5 settled"]["ok"] and found["5 settled"]["strayed"] == 0
+
+
+def test_on_the_validation_split_a_run_may_follow_the_measured_outputs_beyond_the_training_range(tmp_path):
+    """A validation block whose output climbs to 2.5 where the training output spans [0, 1] (a block held out
+    for cross-validation can hold a recording's largest excursion): a run that follows it is right there. The
+    validation split's band covers its measured outputs with the same margin; the training split's and a test
+    split's stay the training range's (test outputs are never read)."""
+    t = np.linspace(0.0, 40.0, 1000)
+    u = np.sin(t)
+    y = (u + 1) / 2
+    y[800:] = 0.5 + 2.0 * np.sin(t[800:]) ** 2  # the validation fifth up to 2.5
+    write_csv(tmp_path / "d.csv", {"u": u, "y": y})
+    write_csv(tmp_path / "t.csv", {"u": u, "y": 3.0 + u})  # test outputs far beyond: not read
+    raw = {
+        "data": {
+            "path": "d.csv",
+            "input": ["u"],
+            "output": ["y"],
+            "split": {"train": 0.8, "validation": 0.2},
+            "test": {"path": "t.csv"},
+        },
+        "model": {"family": "narx"},
+    }
+    data = load_dataset(validate_spec(raw, "<test>", tmp_path))
+    lo, hi, width = checks.band(data)
+    margin = checks.BAND * (1.0 - checks.EDGE) * width
+    follows = y[800:, None]
+    assert checks._leaves(follows, lo, hi, width) is not None  # the training range's band rejects it
+    v_lo, v_hi = checks.measured_band(data, "validation", lo, hi, margin)
+    assert v_lo == pytest.approx(lo) and v_hi == pytest.approx(y[800:].max() + margin)
+    assert checks._leaves(follows, v_lo, v_hi, width) is None
+    for split in data.splits():
+        if split != "validation":
+            assert checks.measured_band(data, split, lo, hi, margin) == (lo, hi)
+    # the same outputs as a validation recording of its own: its run starts from its own measured outputs, whose
+    # level a model can carry over, so they do not widen the band
+    write_csv(tmp_path / "v.csv", {"u": u[800:], "y": y[800:]})
+    own = {**raw["data"], "path": "d.csv", "split": {"train": [0, 800]}, "validation": {"path": "v.csv"}}
+    apart = load_dataset(validate_spec({**raw, "data": own}, "<test>", tmp_path))
+    assert apart.ranges["validation"][0][0] not in {r for r, _, _ in apart.ranges["train"]}
+    assert checks.measured_band(apart, "validation", lo, hi, margin) == (lo, hi)

@@ -517,7 +517,8 @@ def _full_columns(fam, st, td, scored, cand):
 
 def test_divergence_is_reported_with_its_sample_and_bounds_stabilize_the_free_run():
     """Trained on inputs of std 1, the degree-5 model leaves every range on inputs of std 3;
-    clipping the output to the training range (eq. 6.25) keeps it running."""
+    clipping the output to the range of the measured outputs (eq. 6.25: training and validation) keeps it
+    running."""
     raw = narx_raw(n=4000, test_n=3000, test_params={"input_std": 3.0}, max_terms=8, patience=None)
     free = fit(raw)
     unstable = free.metrics["test"]["unstable_from"]
@@ -532,8 +533,9 @@ def test_divergence_is_reported_with_its_sample_and_bounds_stabilize_the_free_ru
     bounded = fit({**raw, "model": {"family": "narx", "params": {**raw["model"]["params"], "bounds": 0.0}}})
     assert bounded.metrics["test"]["nmse"] < 30 and "unstable_from" not in bounded.metrics["test"]
     y = bounded.predict(test.u, y_tune=test.y[:2])[2:, 0]
-    train_y = load_dataset(validate_spec(raw)).recordings[0].y[:3000, 0]
-    assert y.max() <= train_y.max() + 1e-12 and y.min() >= train_y.min() - 1e-12
+    measured = load_dataset(validate_spec(raw)).recordings[0].y[:, 0]  # training and validation
+    assert y.max() <= measured.max() + 1e-12 and y.min() >= measured.min() - 1e-12
+    assert np.sum(y >= measured.max() - 1e-12) > 0  # held at the clip
 
 
 def test_explicit_bounds_are_in_the_data_units_and_may_be_one_sided():
@@ -763,6 +765,39 @@ def test_defaults_work_on_a_first_try():
     lag = sel["lags"]
     assert m.family.warmup == lag and m.family.embedding_.max_lag == lag  # the kept model's own embedding
     assert any(t.startswith("u[") or "* u[" in t for t in m.family.terms_[0])
+
+
+def test_a_validation_output_beyond_the_training_range_is_followed_not_clipped(tmp_path):
+    """A Wiener system (second-order filter, then x + 0.3 x^3) whose last fifth, the validation split, is driven
+    1.8x harder: its output leaves the training range widened by half its width (by 0.98 widths). The degree-3
+    models follow it there; judged against the band of the training range alone, each of them counted as
+    needing its output clip on validation and the default chose a linear model on lags up to 2 (41.9 %
+    validation NMSE). The band and the clip cover the measured validation outputs too."""
+    from scipy import signal
+
+    rng = np.random.default_rng(3)
+    n, cut = 3000, 2400
+    u = signal.lfilter(*signal.butter(2, 0.1), rng.standard_normal(n))
+    u = u / u.std()
+    u[cut:] *= 1.8
+    x = signal.lfilter([0.05, 0.03], [1, -1.6, 0.68], u)
+    y = x + 0.3 * x**3
+    width = np.ptp(y[:cut])
+    beyond = max(y[:cut].min() - y[cut:].min(), y[cut:].max() - y[:cut].max())
+    assert beyond > 1.4 * width  # the validation goes far beyond the training range
+    m = Narx().fit(u, y)  # the default split: the last fifth validates
+    assert m.selection_["degree"] == 3
+    assert m.model_.metrics["validation"]["nmse"] < 3.0
+    lo, hi = (m.model_.preprocessor.physical_outputs(c.reshape(1, -1))[0, 0] for c in (m.clip_lo_, m.clip_hi_))
+    assert lo < y[cut:].min() and hi > y[cut:].max()  # the clip holds every measured output
+    # the same samples as a validation recording of its own: its run starts from its own measured outputs, whose
+    # level a model can carry over, so the clip stays the training range's
+    write_csv(tmp_path / "t.csv", {"u": u[:cut], "y": y[:cut]})
+    write_csv(tmp_path / "v.csv", {"u": u[cut:], "y": y[cut:]})
+    data = {"path": "t.csv", "input": ["u"], "output": ["y"], "split": {"train": 1.0}, "validation": {"path": "v.csv"}}
+    apart = fit({"data": data, "model": {"family": "narx", "params": {"degree": 3}}}, tmp_path)
+    low = apart.preprocessor.physical_outputs(apart.family.clip_lo_.reshape(1, -1))[0, 0]
+    assert low == pytest.approx(y[:cut].min() - 0.5 * width)
 
 
 @pytest.mark.slow

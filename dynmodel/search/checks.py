@@ -1,10 +1,12 @@
-"""What the search checks on a fitted candidate beyond its validation error, reading only **inputs**.
+"""What the search checks on a fitted candidate beyond its validation error, reading only **inputs** of the test
+sets (and the outputs of training and validation, which it may read).
 
 The *band check*: the candidate's free run on the inputs of every split (training, validation, every test
-set) must stay inside the training output range widened by :data:`BAND` of its width on each side. A run
-that leaves it diverges or extrapolates wildly where the data give no evidence; a run held at an output
-clip set at (or beyond) that band counts as leaving it (the clip hides the divergence). Test outputs are
-never read. What counts as leaving:
+set) must stay inside the training output range widened by :data:`BAND` of its width on each side (on the
+validation split, the range of its measured outputs too: :func:`measured_band`). A run that leaves it
+diverges or extrapolates wildly where the data give no evidence; a run held at an output clip set at (or
+beyond) that band counts as leaving it (the clip hides the divergence). Test outputs are never read. What
+counts as leaving:
 
 * a non-finite output, or one beyond an outer band of :data:`OUTER_BAND` widths on each side;
 * more than :data:`BRIEF` samples in a row, or more than :data:`STRAY` of the scored samples, outside the
@@ -56,6 +58,7 @@ model whose free run barely moves when the input is held at its mean ignores its
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import replace
 from typing import Any
 
@@ -101,6 +104,28 @@ def band(ds: Dataset) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     width = np.maximum(hi - lo, np.finfo(float).tiny)
     margin = BAND * (1.0 - EDGE) * width
     return lo - margin, hi + margin, width
+
+
+def measured_band(
+    ds: Dataset, split: str, lo: np.ndarray, hi: np.ndarray, margin: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The band (lo, hi) of ``split``, widened on the validation split to its measured outputs in the
+    recordings that hold training samples and the same ``margin`` beyond them: a run that follows a validation
+    output there beyond the training range is right (a block held out for cross-validation can hold the
+    recording's largest excursion). A validation recording of its own is left out: its run starts from its own
+    measured outputs, whose level a model can carry over (the pneumatic seal, each pressure left out in turn).
+    Test outputs are never read."""
+    if split != "validation":
+        return lo, hi
+    trained = {rec for rec, _, _ in ds.ranges.get("train", [])}
+    pieces = [ds.recordings[r].y[a:b] for r, a, b in ds.ranges.get(split, []) if r in trained]
+    if not pieces:
+        return lo, hi
+    y = np.concatenate(pieces)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an output column without a measured sample
+        ylo, yhi = np.nanmin(y, axis=0), np.nanmax(y, axis=0)
+    return np.fmin(lo, ylo - margin), np.fmax(hi, yhi + margin)
 
 
 def _longest_run(mask: np.ndarray) -> int:
@@ -312,11 +337,13 @@ def band_checks(
     where a run from rest of a model that starts from measured outputs left the band (see the module docstring).
     ``starts``: the runs from measured starts (:func:`measured_starts`), kept as ``"starts"`` under both bands and
     failing both when they stray."""
-    lo, hi, width = band(ds)
+    train_lo, train_hi, width = band(ds)
     margin = BAND * (1.0 - EDGE) * width
+    strict = {split: measured_band(ds, split, train_lo, train_hi, margin) for split in ds.splits()}
     wider: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     extra = AFFINE_BAND * width if affine else np.zeros_like(width)  # a linear model's own allowance
     for split in ds.splits():  # the linear-system band: the reference's run, widened as the training range
+        lo, hi = strict[split]
         low, high = lo - extra, hi + extra
         if split in (envelope or {}):
             env_lo, env_hi = (envelope or {})[split]
@@ -330,6 +357,7 @@ def band_checks(
     out: dict[str, Any] = {"ok": True}
     wide: dict[str, Any] = {"ok": True}
     for split in ds.splits():
+        lo, hi = strict[split]
         for target, (low, high) in ((out, (lo, hi)), (wide, wider.get(split, (lo, hi)))):
             entry: dict[str, Any] = {"ok": True, "sample": None, "recording": None, "start": None}
             for rec, a, b in ds.scored(split, warm):

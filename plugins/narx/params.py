@@ -192,10 +192,10 @@ class NarxFamilyParams(FamilyParams):
     )
     bounds: Optional[Union[Annotated[float, Field(ge=0)], dict[str, tuple[Optional[float], Optional[float]]]]] = Field(
         0.5,
-        description="clip the free-running output (eq. 6.25): a number m clips every output to its training range "
-        "widened by m x the range on both sides (default 0.5: a model driven outside its training inputs stays "
-        "within plausible outputs instead of diverging); {output: [L, U]} gives bounds in the data's units (null: "
-        "that side unbounded); null: no clipping",
+        description="clip the free-running output (eq. 6.25): a number m clips every output to the range of its "
+        "measured training and validation outputs widened by m x the training range on both sides (default 0.5: a "
+        "model driven outside its training inputs stays within plausible outputs instead of diverging); {output: "
+        "[L, U]} gives bounds in the data's units (null: that side unbounded); null: no clipping",
     )
     clip_while_choosing: bool = Field(
         False,
