@@ -55,6 +55,26 @@ def last_samples(ranges: list[Range], samples: int | None) -> list[Range]:
     return kept
 
 
+def continued_range(
+    outputs: list[np.ndarray], ranges: list[Range], train: list[Range]
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """(low, high) per output of the measured ``outputs`` (per recording) over the ``ranges`` that lie in a
+    recording holding ``train`` samples (NaN for a column without a measured sample), or None when none does.
+    A validation range that continues a training recording is reached by a free run from the training data, so
+    an output there beyond the training range is a measured one, not a diverging run; a validation recording of
+    its own starts from its own measured outputs, whose level a model can carry over (the pneumatic seal, each
+    pressure's recording left out in turn), and is left out."""
+    trained = {r for r, _, _ in train}
+    pieces = [outputs[r][a:b] for r, a, b in ranges if r in trained]
+    if not pieces:
+        return None
+    y = np.concatenate(pieces)
+    seen = np.isfinite(y).any(axis=0)
+    lo, hi = np.full(y.shape[1], np.nan), np.full(y.shape[1], np.nan)
+    lo[seen], hi[seen] = np.nanmin(y[:, seen], axis=0), np.nanmax(y[:, seen], axis=0)
+    return lo, hi
+
+
 def compact_ranges(pieces: dict[str, list[Range]]) -> tuple[list[Range], dict[str, list[Range]]]:
     """The recordings ``pieces`` (split -> ranges) use, each as (recording, first start, last stop) in recording
     order, and ``pieces`` re-indexed onto that list and shifted to each cut's start (empty splits dropped)."""

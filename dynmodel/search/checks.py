@@ -58,13 +58,12 @@ model whose free run barely moves when the input is held at its mean ignores its
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from ..data.dataset import Dataset
+from ..data.dataset import Dataset, continued_range
 from ..model import FittedModel
 from .views import FIT_SPLITS
 
@@ -110,22 +109,16 @@ def measured_band(
     ds: Dataset, split: str, lo: np.ndarray, hi: np.ndarray, margin: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """The band (lo, hi) of ``split``, widened on the validation split to its measured outputs in the
-    recordings that hold training samples and the same ``margin`` beyond them: a run that follows a validation
-    output there beyond the training range is right (a block held out for cross-validation can hold the
-    recording's largest excursion). A validation recording of its own is left out: its run starts from its own
-    measured outputs, whose level a model can carry over (the pneumatic seal, each pressure left out in turn).
-    Test outputs are never read."""
-    if split != "validation":
+    recordings that hold training samples (:func:`~dynmodel.data.dataset.continued_range`) and the same
+    ``margin`` beyond them: a block held out for cross-validation can hold the recording's largest excursion,
+    and a run that follows it there is right. Test outputs are never read."""
+    measured = None
+    if split == "validation":
+        outputs = [rec.y for rec in ds.recordings]
+        measured = continued_range(outputs, ds.ranges.get(split, []), ds.ranges.get("train", []))
+    if measured is None:
         return lo, hi
-    trained = {rec for rec, _, _ in ds.ranges.get("train", [])}
-    pieces = [ds.recordings[r].y[a:b] for r, a, b in ds.ranges.get(split, []) if r in trained]
-    if not pieces:
-        return lo, hi
-    y = np.concatenate(pieces)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # an output column without a measured sample
-        ylo, yhi = np.nanmin(y, axis=0), np.nanmax(y, axis=0)
-    return np.fmin(lo, ylo - margin), np.fmax(hi, yhi + margin)
+    return np.fmin(lo, measured[0] - margin), np.fmax(hi, measured[1] + margin)
 
 
 def _longest_run(mask: np.ndarray) -> int:

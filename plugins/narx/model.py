@@ -18,7 +18,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from dynmodel.data.dataset import last_samples
+from dynmodel.data.dataset import continued_range, last_samples
 from dynmodel.data.delay import READ_ON, dead_times
 from dynmodel.data.training import TrainingData
 from dynmodel.family import Family, Progress, Simulation, constructor_arguments, no_progress
@@ -187,7 +187,7 @@ class Narx(Family):
     def _check_band(self) -> tuple[np.ndarray, np.ndarray]:
         """The band a free run must stay in while the model is chosen (sizes, lags, weights). Without
         ``bounds``: the divergence band. With them: the output clip, widened where it is tighter than the
-        measured outputs' range (training and validation, :meth:`_measured_range`) +- half the training
+        measured outputs' range (training and validation, :meth:`_set_clip`) +- half the training
         range's width, within the divergence band. The clip is for inputs the training data never showed; a
         model that needs it on its own training or validation inputs is broken there, and clipped it would pass
         every divergence check unnoticed. With ``clip_while_choosing`` the clip is part of the model: only the
@@ -642,36 +642,22 @@ class Narx(Family):
 
         return error
 
-    @staticmethod
-    def _measured_range(data: TrainingData, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The range of the measured outputs the fit reads: the training targets ``Y`` and the validation
-        outputs of the recordings the training samples lie in. A validation output there beyond the training
-        range is a measured output the run reaches from the training data, not a diverging run: a block held
-        out for cross-validation can hold the recording's largest excursion (a generated Wiener-Hammerstein
-        system, its middle fifth down to -3.12 where the other four reach -1.15: every degree-3 model left the
-        band of the training range there, and the default chose a linear one with 9.7 % validation NMSE over
-        0.35 %). A validation recording of its own is left out: its run starts from its own measured outputs,
-        whose level a model can carry over instead of computing it from the inputs (the pneumatic seal, each
-        pressure's recording left out in turn: 12.0 -> 139 % test NMSE at 7 bar when they counted)."""
-        lo, hi = Y.min(axis=0), Y.max(axis=0)
-        trained = {s for s, _, _ in data.segments.get("train", [])}
-        pieces = [data.series[s].y[a:b] for s, a, b in data.segments.get("validation", []) if s in trained]
-        if pieces:
-            v = np.concatenate(pieces)
-            seen = np.isfinite(v).any(axis=0)
-            if seen.any():
-                lo[seen] = np.minimum(lo[seen], np.nanmin(v[:, seen], axis=0))
-                hi[seen] = np.maximum(hi[seen], np.nanmax(v[:, seen], axis=0))
-        return lo, hi
-
     def _set_clip(self, data: TrainingData, Y: np.ndarray) -> None:
-        """Output bounds [L, U] of eq. 6.25 in model space: the measured outputs' range (training and
-        validation, :meth:`_measured_range`) widened by ``bounds`` x the training range's width, or the given
-        values converted from the data's units; and the band of plausible outputs the checks read
-        (:meth:`_check_band`), widened by half that width."""
+        """Output bounds [L, U] of eq. 6.25 in model space: the measured outputs' range (training, and
+        validation where it continues a training recording: :func:`~dynmodel.data.dataset.continued_range`)
+        widened by ``bounds`` x the training range's width, or the given values converted from the data's
+        units; and the band of plausible outputs the checks read (:meth:`_check_band`), widened by half that
+        width. A generated Wiener-Hammerstein system's middle fifth, held out for cross-validation, went down
+        to -3.12 where the other four reach -1.15: against the training range alone every degree-3 model
+        needed its clip there, and the default chose a linear one (9.7 % validation NMSE over 0.35 %)."""
         b = self.params.bounds
-        width = Y.max(axis=0) - Y.min(axis=0)
-        lo, hi = self._measured_range(data, Y)
+        lo, hi = Y.min(axis=0), Y.max(axis=0)
+        width = hi - lo
+        measured = continued_range(
+            [ser.y for ser in data.series], data.segments.get("validation", []), data.segments.get("train", [])
+        )
+        if measured is not None:  # a validation output beyond the training range is measured, not diverging
+            lo, hi = np.fmin(lo, measured[0]), np.fmax(hi, measured[1])
         self._plausible = (lo - 0.5 * width, hi + 0.5 * width)
         self.clip_lo_ = np.full(self.n_outputs_, -np.inf)
         self.clip_hi_ = np.full(self.n_outputs_, np.inf)
