@@ -261,12 +261,10 @@ def test_thesis_4_4_2_feed_forward_beats_parallel(thesis_4_4_2):
 @pytest.mark.slow
 def test_thesis_4_4_2_delayed_states_in_the_readout_cut_the_error(thesis_4_4_2, thesis_4_4_2_delays):
     """The ablation's finding: the readout lacks memory of the drive. The same annealed networks (anneal_delays:
-    false, so seed for seed the network of the thesis's readout) read out over their states every 0.3 (parallel) /
-    0.5 (feed-forward) time units up to 6 / 5 back cut each seed's error by more than 4x: parallel 1.68 ± 0.20 %,
-    feed-forward 0.77 ± 0.43 % (seeds 0 - 4) on one machine, 1.59 ± 0.24 / 0.95 ± 0.60 % on another (an AMD
-    EPYC without AVX-512: numba compiles the kernels for the host CPU, with fast-math, so they round otherwise
-    there, and an annealing amplifies that; compiled for a generic CPU, feed-forward seed 1 gives 0.80 %, for
-    this one 1.94 %, 5.0x below its network's 9.71 % with the thesis's readout); thesis readout 15.9 / 9.2 %."""
+    false: seed for seed the network of the thesis's readout) read out over their states every 0.3 (parallel) /
+    0.5 (feed-forward) time units up to 6 / 5 back cut each seed's error by more than 4x (the worst: 9.71 ->
+    1.94 %). Seeds 0 - 4: parallel 1.68 / 1.59 %, feed-forward 0.77 / 0.95 % on two CPUs, whose compiled kernels
+    round otherwise (docs/ablations.md, "Figures and the machine"); thesis readout 15.9 / 9.2 %."""
     plain, lagged = thesis_4_4_2, thesis_4_4_2_delays
     for strategy in ("parallel", "feed-forward"):
         assert (lagged[strategy] < 0.25 * plain[strategy]).all(), strategy
