@@ -1820,6 +1820,41 @@ def test_a_model_whose_fits_part_ways_on_the_test_inputs_gives_way_to_one_whose_
     assert note.endswith("the tie is measured from the next best, b, so c is chosen instead of b")
 
 
+def test_within_the_tie_one_whose_fits_hold_on_the_test_inputs_is_preferred_to_the_simplest_whose_fits_part_ways():
+    """Seeds 3700's sys21 (a Wiener exponential under noise, test inputs 18 % beyond the training range, five folds):
+    three degree-2 NARX models tie within 10 %; the simplest, a ridge model, has folds that part ways on the test
+    inputs (at least 5.33 % test error) and tested 31 %; the one clipped at the training range, whose folds hold
+    closer (at least 2.16 %), tests 7.4 % (the best default, an echo state network, 16.5 %)."""
+    from dynmodel.search.select import held_in_tie, least_test_error
+
+    labels = {"l": "longer", "c": "clipped", "r": "ridge"}
+    doubt = "cross-validated in 5 blocks"
+    ridge = _fits(0.424, 65.5, spread=21.34, fits=4)
+    tie = {"l": _fits(0.408, 66.5, spread=532.4, fits=4), "c": _fits(0.4224, 66.5, spread=8.635, fits=4), "r": ridge}
+    assert least_test_error(tie["c"]) == pytest.approx(8.635 / 4) and least_test_error(tie["l"]) == pytest.approx(133.1)
+    c = choose(tie, labels, short_validation=doubt)
+    assert c.key == "c" and c.verdicts["r"].startswith("within the tie, the simplest, but its fits part ways")
+    assert c.verdicts["l"] == "within the tie, larger"
+    assert "its 4 fits part ways on the test inputs" in c.notes[-1] and "at least 5.33 %" in c.notes[-1]
+    assert c.notes[-1].endswith(
+        "clipped validates within that tie (0.4224 %) and its fits hold closer there (at least 2.16 %), so it is chosen"
+    )
+    # without the step, and without the caution that widens the tie, the simplest as before
+    assert choose(tie, labels, short_validation=doubt, parted=False).key == "r"
+    assert choose(tie, labels).key == "l"
+    # the others' least test error is not below the simplest's floor: the simplest stays
+    worse = {"c": _fits(0.4224, 66.5, spread=22.0, fits=4), "r": ridge}
+    assert held_in_tie(["c", "r"], worse, "r") is None and choose(worse, labels, short_validation=doubt).key == "r"
+    # evidence of another kind (another number of fits, or none) is not compared
+    for other in (_fits(0.4224, 66.5, spread=8.635, fits=3), _fits(0.4224, 66.5, spread=None, fits=4)):
+        assert choose({"c": other, "r": ridge}, labels, short_validation=doubt).key == "r"
+    # the simplest's fits agree there: it stays, whatever the others show
+    agreeing = _fits(0.424, 65.5, spread=1.0, fits=4)
+    assert choose({"c": tie["c"], "r": agreeing}, labels, short_validation=doubt).key == "r"
+    # outside the tie (and more than 25 % behind: no set-aside either) nothing is compared
+    assert choose({"c": _fits(0.55, 66.5, spread=0.4, fits=4), "r": ridge}, labels, short_validation=doubt).key == "r"
+
+
 def _seeds(score: float, size: float, spread: float, closest: float, seeds: int = 3) -> Summary:
     """A random candidate on a hold-out split: ``seeds`` fits, one per seed, all on the same samples."""
     s = _fits(score, size, spread, fits=seeds)
