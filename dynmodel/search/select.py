@@ -495,7 +495,7 @@ def held_in_tie(close: list[str], summaries: dict[str, Summary], simplest: str) 
     """Within the tie ``close``, where the validation ranks nothing: when the fits of ``simplest`` part ways on the
     test inputs (:func:`parts_ways`), the tie member with as many fits (the same kind of evidence) whose
     :func:`least_test_error` is the lowest, if that lies below the floor of ``simplest`` (the simpler first among equals);
-    None otherwise. Seeds 3700's sys21 (a Wiener exponential, test inputs 18 % beyond the training range): four
+    None otherwise. Seeds 3700's sys21 (a Wiener exponential, test inputs 18 % beyond the training range): three
     degree-2 NARX models tie at 0.41 - 0.42 % on five folds; the simplest, a ridge model, had folds at least 5.3 %
     apart on the test and tested 31 %; the one clipped at the training range, folds at least 2.2 %, tests 7.4 %."""
     s0 = summaries[simplest]
