@@ -1853,6 +1853,20 @@ def test_a_model_whose_fits_part_ways_on_the_test_inputs_gives_way_to_one_whose_
         note.startswith("a validated best (validation NMSE 1 %), but its 3 fits part ways") and "at least 2 %" in note
     )
     assert note.endswith("the tie is measured from the next best, b, so c is chosen instead of b")
+    # the set-aside of the best changes nothing that the tie's own step (held_in_tie) does not: no note credits it.
+    # a's 3 fits part ways and d's 3 agree (a is set aside); c, the simplest of the tie, has 4 fits that part ways,
+    # b's 4 hold closer: b is chosen either way, where without both steps the tie measured from a gives c
+    part = {
+        "a": _fits(1.0, 20, spread=8.0),
+        "b": _fits(1.005, 10, spread=5.0, fits=4),
+        "c": _fits(1.01, 5, spread=8.0, fits=4),
+        "d": _fits(1.2, 90, spread=0.4),
+    }
+    both = choose(part, labels | {"d": "d"})
+    assert both.key == "b" and both.verdicts["a"].startswith("set aside: its fits part ways")
+    assert choose(part, labels | {"d": "d"}, parted=False).key == "c"
+    assert choose(part, labels | {"d": "d"}, set_apart=False).key == "b"
+    assert len(both.notes) == 1 and both.notes[0].endswith("so it is chosen")  # held_in_tie's note alone
 
 
 def test_within_the_tie_one_whose_fits_hold_on_the_test_inputs_is_preferred_to_the_simplest_whose_fits_part_ways():

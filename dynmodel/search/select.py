@@ -518,14 +518,16 @@ def choose(
     uses_inputs: bool = True,
     fold_blocks: int = 0,
     parted: bool = True,
+    set_apart: bool = True,
 ) -> Choice:
     """The winner among ``summaries`` (candidate key -> Summary at the deciding level), see the module
     docstring. ``labels``: key -> a short description for the notes. ``short_validation``: why the
     validation is short (None when it is not); ``excursion``: how far test inputs leave the training
     range; ``reference``: the linear reference's score at the same level; ``fold_blocks``: when the short
     validation is a blocked cross-validation, the blocks of each fold (the paired comparison sums them);
-    ``parted``: set aside the candidates whose fits part ways on the test inputs (False: the choice without
-    that step, to say what it changed)."""
+    ``parted``: weigh how the fits part ways on the test inputs (False: the choice without those steps);
+    ``set_apart``: the step of those that sets aside the candidates whose fits part ways while as many fits of
+    another agree (False: the choice without that step alone, to say what it changed)."""
     out = Choice(None)
     order = sorted(summaries, key=lambda k: (summaries[k].score, k))
     for k in order:
@@ -600,7 +602,7 @@ def choose(
     # fits that part ways on the test inputs (their error there cannot be below a quarter of that spread, which
     # exceeds their validation error): set aside when a candidate whose as many fits (the same kind of evidence)
     # agree there validates about as well
-    apart = parted_aside(eligible, summaries, best) if parted else []
+    apart = parted_aside(eligible, summaries, best) if parted and set_apart else []
     for k in apart:
         out.verdicts[k] = (
             "set aside: its fits part ways on the test inputs by more than its validation error, while a "
@@ -701,16 +703,14 @@ def choose(
             if k in resolved:
                 out.verdicts[k] = f"validates worse ({by})"
     if apart:  # say so when the step changed the choice
-        plain = choose(
-            summaries,
-            labels,
-            short_validation=short_validation,
-            excursion=excursion,
-            reference=reference,
-            uses_inputs=uses_inputs,
-            fold_blocks=fold_blocks,
-            parted=False,
-        )
+        inputs: dict[str, Any] = {
+            "short_validation": short_validation,
+            "excursion": excursion,
+            "reference": reference,
+            "uses_inputs": uses_inputs,
+            "fold_blocks": fold_blocks,
+        }
+        plain = choose(summaries, labels, **inputs, parted=False)
         within = f"{100 * (ABOUT_AS_WELL - 1):.0f} %"
         agree = f"while a candidate whose as many fits agree there validates within {within} of the best"
         if plain.key in apart:
@@ -720,7 +720,11 @@ def choose(
                 f"{first.fits} fits part ways on the test inputs: {floor_words(first)}, {agree}; "
                 f"{labels[simplest]} is chosen instead"
             )
-        elif plain.key is not None and plain.key != simplest:  # the set-aside moved the tie's best
+        elif (  # the set-aside moved the tie's best: the choice without it alone differs (not another step's doing)
+            plain.key is not None
+            and plain.key != simplest
+            and choose(summaries, labels, **inputs, set_apart=False).key != simplest
+        ):
             first = summaries[apart[0]]
             out.notes.append(
                 f"{labels[apart[0]]} validated best (validation NMSE {first.score:.4g} %), but its {first.fits} fits "
