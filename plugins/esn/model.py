@@ -20,7 +20,7 @@ from dynmodel.data.training import TrainingData
 from dynmodel.family import Family, FamilyParams, Progress, Simulation, constructor_arguments, no_progress
 from dynmodel.moments import Moments
 
-from .network import Network, build_network, largest_singular_value, spectral_radius
+from .network import Network, build_network, largest_singular_value, spectral_radius, stack_networks
 from .params import EsnParams, Readout, Refinement, Scale, Weights
 from .streaming import RunBuffers, free_run_moments, free_runs, output_of, settled_state, teacher_forced_moments
 
@@ -59,6 +59,14 @@ class EchoStateNetwork(Family):
     warmup_hint = "set tune_in to at most {window}, or use mode: internal (no measured output is fed back)"
 
     params: EsnParams
+    #: the ridge factor used (``ridge: auto``: the one chosen on validation), for frozen_config
+    readout_alpha_: float | None
+    #: the refinement's iterations (cost mse_inf, external mode)
+    refinement_: list[dict[str, float]]
+    #: networks averaged (``members``): the terms each readout kept (FOS), for frozen_config
+    member_terms_: list[int]
+    #: networks averaged: the values each readout estimated (its nonzero weights and intercepts)
+    member_values_: list[int]
 
     def __init__(
         self,
@@ -77,6 +85,7 @@ class EchoStateNetwork(Family):
         tune_in: int = 20,
         settle: int = 200,
         bounds: float | None = 0.5,
+        members: int = 1,
         readout: Readout | dict[str, Any] | None = None,
         refinement: Refinement | dict[str, Any] | None = None,
         weights: Weights | dict[str, Any] | None = None,
@@ -149,9 +158,46 @@ class EchoStateNetwork(Family):
         progress: Progress = no_progress,
     ) -> EchoStateNetwork:
         rng = rng if rng is not None else np.random.default_rng(0)
+        members = self._members
+        if members > 1:
+            return self._fit_members(data, cost, rng, progress, members)
         self._prepare(data)
         self.network_ = build_network(self.params, data.n_inputs, data.n_outputs, rng)
         return self._fit_readout(data, cost, progress)
+
+    @property
+    def _members(self) -> int:
+        """Networks averaged (``members``; 1 for families built on this one without it)."""
+        return int(getattr(self.params, "members", 1))
+
+    def _fit_members(
+        self: _Esn, data: TrainingData, cost: str, rng: np.random.Generator, progress: Progress, members: int
+    ) -> _Esn:
+        """``members`` networks, each drawn and fitted on a seed of its own (children of one SeedSequence drawn from
+        ``rng``), kept as one network of their elements side by side (:func:`.network.stack_networks`) whose readout
+        is the mean of theirs: y = (1/K) sum_k (W_k x_k + D_k v + w0_k). In the internal mode its output is the
+        mean of the networks' outputs; in the external mode the mean is fed back to all of them."""
+        root = np.random.SeedSequence([int(v) for v in rng.integers(0, 2**63, size=4)])
+        fitted: list[EchoStateNetwork] = []
+        for i, child in enumerate(root.spawn(members)):
+
+            def told(stage: str, fraction: float | None, message: str, i: int = i) -> None:
+                progress(stage, fraction, f"network {i + 1} of {members}: {message}")
+
+            one = type(self)(**{**self._given, "members": 1})
+            fitted.append(one.fit(data, cost, np.random.default_rng(child), told))
+        self._prepare(data)
+        self.network_ = stack_networks([m.network_ for m in fitted])
+        self.W_ = np.hstack([m.W_ for m in fitted]) / members
+        self.D_ = np.mean([m.D_ for m in fitted], axis=0)
+        self.w0_ = np.mean([m.w0_ for m in fitted], axis=0)
+        # what each readout chose on validation, for frozen_config: its terms (FOS) and ridge factor
+        self.member_terms_ = [int(max(len(s) for s in m.selected_)) + 1 for m in fitted]
+        self.member_values_ = [m.fitted_values() for m in fitted]
+        alphas = [m.readout_alpha_ for m in fitted if m.readout_alpha_ is not None]
+        self.readout_alpha_ = float(np.median(alphas)) if len(alphas) == members else None
+        self.refinement_ = []
+        return self
 
     def _prepare(self, data: TrainingData) -> None:
         self.n_inputs_ = data.n_inputs
@@ -200,8 +246,8 @@ class EchoStateNetwork(Family):
         self._set_readout(solved)
         # the ridge factor used (``ridge: auto``: the one chosen on validation), for frozen_config
         alpha = solved.info.get("alpha") if self.params.readout.solver == "ridge" else None
-        self.readout_alpha_: float | None = None if alpha is None else float(alpha)
-        self.refinement_: list[dict[str, float]] = []
+        self.readout_alpha_ = None if alpha is None else float(alpha)
+        self.refinement_ = []
         if cost == "mse_inf" and self.external:
             self._refine(data, progress)
         elif cost == "mse_inf":
@@ -374,7 +420,8 @@ class EchoStateNetwork(Family):
             inputs,
             closed,
             name="esn",
-            description=f"echo state network, {net.size} elements, {self.params.mode} mode",
+            description=f"echo state network, {net.size} elements, {self.params.mode} mode"
+            + (f", {self._members} networks averaged" if self._members > 1 else ""),
         )
 
     # ------------------------------------------------------------------ persistence
@@ -405,6 +452,9 @@ class EchoStateNetwork(Family):
             "refinement": self.refinement_,
             "readout_alpha": getattr(self, "readout_alpha_", None),
         }
+        if self._members > 1:
+            attrs["member_terms"] = list(self.member_terms_)
+            attrs["member_values"] = list(self.member_values_)
         return arrays, attrs
 
     @classmethod
@@ -426,6 +476,9 @@ class EchoStateNetwork(Family):
         self.refinement_ = list(attrs.get("refinement") or [])
         alpha = attrs.get("readout_alpha")
         self.readout_alpha_ = None if alpha is None else float(alpha)
+        if "member_terms" in attrs:
+            self.member_terms_ = [int(t) for t in attrs["member_terms"]]
+            self.member_values_ = [int(t) for t in attrs["member_values"]]
         return self
 
     def frozen_config(self) -> dict[str, Any] | None:
@@ -433,7 +486,8 @@ class EchoStateNetwork(Family):
         validation (``max_terms``: its states and drive terms and the constant; the network itself is fixed by
         the seed); a ridge factor chosen on validation (``ridge: auto``) becomes the number it chose. An external
         network's refinement then keeps its best iterate on the training run. None for a ridge factor chosen on
-        validation by a model saved before the factor was kept."""
+        validation by a model saved before the factor was kept. Networks averaged (``members``): each keeps as many
+        terms as the most any of them chose, and the median of their ridge factors."""
         self.check_fitted()
         r = self.params.readout
         readout = dict(self._given.get("readout") or {})
@@ -442,12 +496,23 @@ class EchoStateNetwork(Family):
             if alpha is None:
                 return None
             readout["ridge"] = alpha
-        if r.solver == "fos":
+        if r.solver == "fos" and self._members > 1:  # each network as many as the most any chose
+            readout["max_terms"] = max(self.member_terms_)
+        elif r.solver == "fos":
             readout["max_terms"] = int(max(len(s) for s in self.selected_)) + 1
         return {"params": {**self._given, "readout": readout}, "cost": None}
 
     def fitted_values(self) -> int:
-        """The readout's nonzero weights and intercepts: the reservoir and input weights are drawn, not fitted."""
+        """The readout's nonzero weights and intercepts: the reservoir and input weights are drawn, not fitted.
+        Networks averaged (``members``): the mean of their readouts' counts, the effective number of values fitted
+        (the hat matrix of a mean of least-squares readouts is the mean of theirs, and so is its trace): averaging
+        lowers the variance of a fit and adds no freedom to follow the data."""
+        if self._members > 1:
+            return int(round(float(np.mean(self.member_values_))))
+        return self.readout_weights()
+
+    def readout_weights(self) -> int:
+        """The readout's nonzero weights and intercepts (of every network averaged)."""
         return int(sum(len(s) for s in self.selected_) + np.size(self.w0_))
 
     def summary(self) -> dict[str, Any]:
@@ -460,6 +525,9 @@ class EchoStateNetwork(Family):
             "rho(C)": round(spectral_radius(net.C), 6),
             "readout": self.params.readout.solver,
         }
+        if self._members > 1:
+            info["networks averaged"] = self._members
+            info["readout weights (every network)"] = self.readout_weights()
         info["readout terms"] = [int(len(s)) for s in self.selected_]
         info["parameters"] = self.fitted_values()
         if np.isfinite(self._clip[0]).any():

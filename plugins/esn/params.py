@@ -146,12 +146,23 @@ class EsnParams(FamilyParams):
         "(eq. 6.25 applied to networks: outside the training inputs a readout extrapolates without limit; in the "
         "external mode the clipped value is fed back); null: no clipping",
     )
+    members: int = Field(
+        1,
+        ge=1,
+        le=16,
+        description="networks fitted, each drawn from its own seed with its own readout, and averaged: the model "
+        "is one network of members x size elements (block-diagonal C) whose readout is the mean of theirs. A "
+        "random network's free run varies from seed to seed by more than its validation shows; the mean of a few "
+        "varies less (in external mode the mean output is fed back)",
+    )
     readout: Readout = Field(default_factory=Readout)
     refinement: Refinement = Field(default_factory=Refinement)
     weights: Optional[Weights] = Field(None, description="explicit matrices instead of a random network")
 
     @model_validator(mode="after")
     def _resolve(self) -> EsnParams:
+        if self.weights is not None and self.members > 1:
+            raise ValueError("members averages networks drawn at random; explicit weights give one network")
         if self.weights is not None:
             m = len(self.weights.C)
             if "size" in self.model_fields_set and self.size != m:
