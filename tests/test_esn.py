@@ -302,7 +302,7 @@ def test_the_search_grows_a_network_into_three_averaged_once():
     grown = neighbours(ctx, Found(net, None, {}, 1.0))
     [averaged] = [c for c in grown if "members" in c.params]
     assert averaged.params == {"mode": "external", "tune_in": 20, "members": 3} and averaged.data == lines
-    assert "3 networks of other seeds averaged" in averaged.summary
+    assert averaged.summary == "a network; 3 networks of other seeds averaged (members 3)"  # what it averages
     weaker = next(c for c in grown if c.params.get("input_scale") == 0.5)
     assert averaged.work == pytest.approx(3 * weaker.work)
     again = neighbours(ctx, Found(averaged, None, {}, 1.0))

@@ -101,7 +101,7 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
         out.append(
             _cand(
                 ctx,
-                f"{mode}, {size} elements, {_MEMBERS} networks of other seeds averaged (members {_MEMBERS})",
+                f"{found.candidate.summary}; {_MEMBERS} networks of other seeds averaged (members {_MEMBERS})",
                 {**p, "members": _MEMBERS},
                 size,
                 external,
