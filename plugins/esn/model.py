@@ -63,10 +63,9 @@ class EchoStateNetwork(Family):
     readout_alpha_: float | None
     #: the refinement's iterations (cost mse_inf, external mode)
     refinement_: list[dict[str, float]]
-    #: networks averaged (``members``): the terms each readout kept (FOS), for frozen_config
-    member_terms_: list[int]
-    #: networks averaged: the values each readout estimated (its nonzero weights and intercepts)
-    member_values_: list[int]
+    #: networks averaged (``members``): each readout's nonzero weights per output (networks x outputs), what
+    #: frozen_config and fitted_values read (the mean readout no longer tells them apart)
+    member_terms_: np.ndarray
 
     def __init__(
         self,
@@ -192,8 +191,7 @@ class EchoStateNetwork(Family):
         self.D_ = np.mean([m.D_ for m in fitted], axis=0)
         self.w0_ = np.mean([m.w0_ for m in fitted], axis=0)
         # what each readout chose on validation, for frozen_config: its terms (FOS) and ridge factor
-        self.member_terms_ = [int(max(len(s) for s in m.selected_)) + 1 for m in fitted]
-        self.member_values_ = [m.fitted_values() for m in fitted]
+        self.member_terms_ = np.array([[len(s) for s in m.selected_] for m in fitted], dtype=np.int64)
         alphas = [m.readout_alpha_ for m in fitted if m.readout_alpha_ is not None]
         self.readout_alpha_ = float(np.median(alphas)) if len(alphas) == members else None
         self.refinement_ = []
@@ -453,8 +451,7 @@ class EchoStateNetwork(Family):
             "readout_alpha": getattr(self, "readout_alpha_", None),
         }
         if self._members > 1:
-            attrs["member_terms"] = list(self.member_terms_)
-            attrs["member_values"] = list(self.member_values_)
+            arrays["member_terms"] = self.member_terms_
         return arrays, attrs
 
     @classmethod
@@ -476,9 +473,8 @@ class EchoStateNetwork(Family):
         self.refinement_ = list(attrs.get("refinement") or [])
         alpha = attrs.get("readout_alpha")
         self.readout_alpha_ = None if alpha is None else float(alpha)
-        if "member_terms" in attrs:
-            self.member_terms_ = [int(t) for t in attrs["member_terms"]]
-            self.member_values_ = [int(t) for t in attrs["member_values"]]
+        if "member_terms" in arrays:
+            self.member_terms_ = np.asarray(arrays["member_terms"], dtype=np.int64)
         return self
 
     def frozen_config(self) -> dict[str, Any] | None:
@@ -497,7 +493,7 @@ class EchoStateNetwork(Family):
                 return None
             readout["ridge"] = alpha
         if r.solver == "fos" and self._members > 1:  # each network as many as the most any chose
-            readout["max_terms"] = max(self.member_terms_)
+            readout["max_terms"] = int(self.member_terms_.max()) + 1
         elif r.solver == "fos":
             readout["max_terms"] = int(max(len(s) for s in self.selected_)) + 1
         return {"params": {**self._given, "readout": readout}, "cost": None}
@@ -508,7 +504,7 @@ class EchoStateNetwork(Family):
         (the hat matrix of a mean of least-squares readouts is the mean of theirs, and so is its trace): averaging
         lowers the variance of a fit and adds no freedom to follow the data."""
         if self._members > 1:
-            return int(round(float(np.mean(self.member_values_))))
+            return int(round(float(np.mean(self.member_terms_.sum(axis=1))))) + int(np.size(self.w0_))
         return self.readout_weights()
 
     def readout_weights(self) -> int:
