@@ -307,3 +307,35 @@ def test_the_search_grows_a_network_into_three_averaged_once():
     again = neighbours(ctx, Found(averaged, None, {}, 1.0))
     assert again and all(c.params["members"] == 3 for c in again)
     assert all("networks averaged" in c.summary for c in again)
+
+
+def test_the_search_grows_a_network_with_its_data_patch():
+    """``family: auto``: every neighbour of a network with a data patch (the friction network's direction
+    features and delay lines) keeps that patch and says so; only the neighbours that add features to a network
+    without them change the data."""
+    from dynmodel.search.space import Candidate, Found, SearchContext
+    from dynmodel_plugins.esn.search import neighbours
+
+    ctx = SearchContext(("x",), ("f",), 1.0, 12000, 3000, {}, positions={"x": 1e-4})
+    patch = {
+        "derived_inputs": ctx.direction_inputs(),
+        "delay_lines": [1, 2, 5, 10, 25, 50, 100],
+        "delay_form": "difference",
+    }
+    net = Candidate("esn", {"size": 400}, "internal, 400 elements, the friction network", data=patch)
+    grown = neighbours(ctx, Found(net, None, {}, 1.0))
+    assert len(grown) >= 6  # averaged, twice the elements, input weights x0.5 / x2, slower, ridge, external
+    assert all(c.data == patch for c in grown), [(c.summary, c.data) for c in grown]
+    note = "with the direction and travel since the last reversal of x as inputs and input delay lines"
+    averaged, *others = grown
+    assert averaged.summary.startswith(net.summary) and "averaged" in averaged.summary
+    assert all(note in c.summary for c in others), [c.summary for c in others]
+    assert len({c.key for c in grown}) == len(grown)
+    # a network without a patch: its neighbours keep none, but for those that add delay lines or directions
+    plain = neighbours(ctx, Found(Candidate("esn", {"size": 400}, "internal, 400 elements"), None, {}, 1.0))
+    added = [c for c in plain if c.data]
+    assert {tuple(sorted(c.data)) for c in added} == {
+        ("delay_form", "delay_lines"),
+        ("derived_inputs",),
+        ("delay_form", "delay_lines", "derived_inputs"),
+    }

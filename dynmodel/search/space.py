@@ -194,6 +194,22 @@ class Found:
     score: float
 
 
+def data_summary(data: dict[str, Any]) -> str:
+    """A candidate summary's note of its data-side extensions (a data patch: derived inputs, input delay
+    lines), e.g. ", with the direction and travel since the last reversal of x as inputs and input delay
+    lines"; "" for none. Families that grow a candidate keep its patch and say so with this note."""
+    derived = data.get("derived_inputs") or []
+    moving = sorted({str(v) for item in derived for k, v in item.items() if k in ("direction", "since_reversal")})
+    signs = sorted({str(item["sign"]) for item in derived if "sign" in item})
+    parts = [f"direction and travel since the last reversal of {', '.join(moving)} as inputs"] if moving else []
+    parts += [f"sign of {', '.join(signs)} as an input"] if signs else []
+    if len(derived) > 2 * len(moving) + len(signs):
+        parts.append("derived inputs")
+    if data.get("delay_lines"):
+        parts.append("input delay lines")
+    return f", with the {' and '.join(parts)}" if parts else ""
+
+
 def candidates_of(family_cls: Any, ctx: SearchContext, around: Found | None = None) -> list[Candidate]:
     """The hook's answer, only well-formed candidates of this family, without repeats; [] when the family
     does not take part or its hook fails (a broken plugin must not stop the search)."""

@@ -15,14 +15,16 @@ delay lines in difference form u(t) - u(t - d) at d = 1, 2, 5, 10, 25, 50, 100 s
 the training samples): an external memory of the input's recent displacements, what pre-sliding friction
 and other hysteresis need (thesis 6.2.3; a data-side extension, the data section patched); and, for inputs
 that move like a position (``SearchContext.positions``), their direction of motion and travel since the last
-reversal as inputs, alone and with the delay lines (thesis 6.1-6.3: friction depends on them).
+reversal as inputs, alone and with the delay lines (thesis 6.1-6.3: friction depends on them). Every
+neighbour keeps the data patch of the network it grows from: the friction network grown into one of twice
+the elements is still the friction network.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from dynmodel.search.space import Candidate, Found, SearchContext
+from dynmodel.search.space import Candidate, Found, SearchContext, data_summary
 
 NAME = "esn"
 #: seconds per training sample and element of a fit (streamed drive, FOS readout), and a fixed part
@@ -96,6 +98,10 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
     mode = "external" if external else "internal"
     if members > 1:
         mode += f" ({members} networks averaged)"
+    # every neighbour keeps the network's data patch (derived inputs, delay lines): a friction network grown
+    # without its direction features is another model, not a larger one
+    data = found.candidate.data
+    on = data_summary(data)
     out = []
     if members == 1:
         out.append(
@@ -105,42 +111,45 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
                 {**p, "members": _MEMBERS},
                 size,
                 external,
-                data=found.candidate.data,
+                data=data,
             )
         )
     if size * 2 <= 1600 and ctx.n_train >= 10 * size:
-        out.append(_cand(ctx, f"{mode}, {2 * size} elements", {**p, "size": 2 * size}, 2 * size, external))
+        out.append(_cand(ctx, f"{mode}, {2 * size} elements{on}", {**p, "size": 2 * size}, 2 * size, external, data))
     scale = float(p.get("input_scale", 1.0))
     for factor in (0.5, 2.0):
         out.append(
             _cand(
                 ctx,
-                f"{mode}, {size} elements, input weights x{factor:g} (input_scale {scale * factor:g})",
+                f"{mode}, {size} elements, input weights x{factor:g} (input_scale {scale * factor:g}){on}",
                 {**p, "input_scale": scale * factor},
                 size,
                 external,
+                data,
             )
         )
     out.append(
         _cand(
             ctx,
-            f"{mode}, {size} elements, slower leaky elements (relaxation 0.5 .. 0.995)",
+            f"{mode}, {size} elements, slower leaky elements (relaxation 0.5 .. 0.995){on}",
             {**p, "relaxation": [0.5, 0.995]},
             size,
             external,
+            data,
         )
     )
     out.append(
         _cand(
             ctx,
-            f"{mode}, {size} elements, ridge readout over every state",
+            f"{mode}, {size} elements, ridge readout over every state{on}",
             {**p, "readout": {**(p.get("readout") or {}), "solver": "ridge"}},
             size,
             external,
+            data,
         )
     )
     # delay lines are offered to an internal network on data without any yet
-    delays = [] if external or found.candidate.data else _offered_delays(ctx)
+    delays = [] if external or data else _offered_delays(ctx)
     if delays:
         out.append(
             _cand(
@@ -158,10 +167,11 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
         out.append(
             _cand(
                 ctx,
-                f"external, {size} elements, tune-in {tune}",
+                f"external, {size} elements, tune-in {tune}{on}",
                 {**p, "mode": "external", "tune_in": tune},
                 size,
                 True,
+                data,
             )
         )
     return out

@@ -38,7 +38,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
-from dynmodel.search.space import Candidate, Found, SearchContext
+from dynmodel.search.space import Candidate, Found, SearchContext, data_summary
 
 from .embedding import pool_size
 from .params import GROWTH_WINDOW
@@ -255,7 +255,7 @@ def starting(ctx: SearchContext) -> list[Candidate]:
             out.append(
                 _candidate(
                     ctx,
-                    "lags and degree chosen on validation" + _on_data({"derived_inputs": derived}),
+                    "lags and degree chosen on validation" + data_summary({"derived_inputs": derived}),
                     dict(zeros),
                     pool6,
                     expected_terms,
@@ -301,20 +301,6 @@ def _chosen(fitted: Any) -> tuple[dict[str, list[int]] | None, int | None, int |
     return table, degree, terms
 
 
-def _on_data(data: dict[str, Any]) -> str:
-    """A summary's note of a candidate's data-side extensions (what its lags name beyond the data's columns)."""
-    derived = data.get("derived_inputs") or []
-    moving = sorted({str(v) for item in derived for k, v in item.items() if k in ("direction", "since_reversal")})
-    signs = sorted({str(item["sign"]) for item in derived if "sign" in item})
-    parts = [f"direction and travel since the last reversal of {', '.join(moving)} as inputs"] if moving else []
-    parts += [f"sign of {', '.join(signs)} as an input"] if signs else []
-    if len(derived) > 2 * len(moving) + len(signs):
-        parts.append("derived inputs")
-    if data.get("delay_lines"):
-        parts.append("input delay lines")
-    return f", with the {' and '.join(parts)}" if parts else ""
-
-
 def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
     fixed_terms = found.candidate.params.get("terms")
     if fixed_terms:  # a fixed structure, each output on its own past (1 + m (L + 1) + L terms): two more lags only
@@ -332,7 +318,7 @@ def neighbours(ctx: SearchContext, found: Found) -> list[Candidate]:
     out = []
 
     data = found.candidate.data  # its data-side extensions (derived inputs): the lags name them
-    on = _on_data(data)
+    on = data_summary(data)
 
     def add(
         summary: str,
